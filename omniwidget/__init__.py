@@ -1,0 +1,59 @@
+"""omniwidget: straighten and edit 360° panoramas with blended Möbius transformations.
+
+The numerical core lives in :mod:`omniwidget.core` and needs only numpy, scipy and
+OpenCV; importing :mod:`omniwidget` loads nothing more. Positions at every public
+boundary are ``[lon, lat]`` in degrees (conventions: :mod:`omniwidget.core.coords`).
+
+Examples
+--------
+>>> import omniwidget as ow
+>>> image = ow.sample_image()
+>>> doc = ow.Handles([ow.LineHandle(start=(-60.0, 30.0), end=(-10.0, 35.0))])
+>>> ow.warp(image, doc).image.shape
+(512, 1024, 3)
+"""
+
+from ._version import __version__
+from .core import (
+    BlendingUnavailableError,
+    CageHandle,
+    Handles,
+    HandlesError,
+    ImageError,
+    LineHandle,
+    Moebius,
+    OmniwidgetError,
+    Options,
+    PointHandle,
+    WarpResult,
+    load_handles,
+    read_image,
+    save_handles,
+    warp,
+    warp_moebius,
+    write_image,
+)
+from .data import sample_image, sample_path
+
+__all__ = [
+    "BlendingUnavailableError",
+    "CageHandle",
+    "Handles",
+    "HandlesError",
+    "ImageError",
+    "LineHandle",
+    "Moebius",
+    "OmniwidgetError",
+    "Options",
+    "PointHandle",
+    "WarpResult",
+    "__version__",
+    "load_handles",
+    "read_image",
+    "sample_image",
+    "sample_path",
+    "save_handles",
+    "warp",
+    "warp_moebius",
+    "write_image",
+]

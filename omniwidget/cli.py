@@ -1,0 +1,130 @@
+"""The command line: ``omniwidget warp`` and ``omniwidget demo``.
+
+Bad input of any kind gives one line on stderr saying what and where, exit status 2, no
+traceback and no output file. Outputs are written whole (temporary file, then rename).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from ._version import __version__
+
+EXIT_BAD_INPUT = 2
+
+#: The demo's handle on the bundled panorama: the bent top edge of the window wall.
+DEMO_HANDLES = {
+    "format": "omniwidget.handles",
+    "version": 1,
+    "handles": [{"kind": "line", "id": "window top", "start": [-4.0, 37.5], "end": [68.0, 36.5], "rectify": True}],
+    "options": {"rectify": "all"},
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, not the whole usage text
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="omniwidget", description="Straighten and edit 360° equirectangular panoramas.")
+    parser.add_argument("--version", action="version", version=f"omniwidget {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    warp = sub.add_parser("warp", help="warp a panorama by a handles file", description="Warp a panorama by the handles in a JSON file.")
+    warp.add_argument("input", type=Path, help="equirectangular image (2:1)")
+    warp.add_argument("-H", "--handles", type=Path, required=True, help="handles file (JSON, see the README)")
+    warp.add_argument("-o", "--output", type=Path, required=True, help="output image (.png, .jpg, .tif, .npy)")
+    warp.add_argument("--width", type=int, help="output width in pixels (even; default: the input's)")
+    warp.add_argument("--map", type=Path, help="also save the inverse map: float32 (H, W, 2) input [lon, lat] per output pixel, .npy")
+    warp.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
+
+    demo = sub.add_parser("demo", help="before/after of the bundled panorama", description="Rectify a line of the bundled panorama and write a before/after.")
+    demo.add_argument("-o", "--output-dir", type=Path, default=Path("omniwidget-demo"), help="folder for the pictures (default: ./omniwidget-demo)")
+    return parser
+
+
+def _check_output(path: Path, suffixes: Sequence[str], what: str) -> None:
+    from .core.errors import ImageError
+
+    if path.suffix.lower() not in suffixes:
+        raise ImageError(f"{path}: the {what} must end in {', '.join(suffixes)}")
+    if not path.parent.is_dir():
+        raise ImageError(f"{path}: the folder {path.parent} does not exist")
+
+
+def _cmd_warp(args: argparse.Namespace) -> None:
+    import numpy as np
+
+    from .core.errors import ImageError
+    from .core.handles import load_handles
+    from .core.io import atomic_write_bytes, check_panorama, read_image, write_image
+    from .core.warp import warp
+
+    if args.output.resolve() == args.input.resolve():
+        raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
+    _check_output(args.output, (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".npy"), "output image")
+    if args.map is not None:
+        _check_output(args.map, (".npy",), "map file")
+    if args.width is not None and (args.width < 2 or args.width % 2):
+        raise ImageError(f"--width {args.width}: the width must be even and at least 2")
+    handles = load_handles(args.handles)
+    image = check_panorama(read_image(args.input), str(args.input))
+    result = warp(image, handles, width=args.width, order=args.order)
+    if args.map is not None:
+        import io
+
+        buf = io.BytesIO()
+        np.save(buf, result.inverse_map())
+        atomic_write_bytes(args.map, buf.getvalue())
+    write_image(args.output, result.image)
+
+
+def _cmd_demo(args: argparse.Namespace) -> None:
+    import numpy as np
+
+    from .core.draw import draw_handles
+    from .core.handles import Handles, save_handles
+    from .core.io import write_image
+    from .core.warp import warp
+    from .data import sample_image
+
+    out = args.output_dir
+    out.mkdir(parents=True, exist_ok=True)
+    image = sample_image()
+    handles = Handles.from_dict(DEMO_HANDLES)
+    start = time.perf_counter()
+    result = warp(image, handles)
+    seconds = time.perf_counter() - start
+    before = draw_handles(image, handles, stage="input")
+    after = draw_handles(result.image, handles, stage="output")
+    gap = np.full((8, image.shape[1], 3), 255, np.uint8)
+    save_handles(handles, out / "handles.json")
+    write_image(out / "before.png", before)
+    write_image(out / "after.png", after)
+    write_image(out / "before_after.png", np.concatenate([before, gap, after]))
+    print(f"rectified {len(handles)} handle(s) in {seconds:.3f} s; wrote {out}/before.png, after.png, before_after.png, handles.json")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    from .core.errors import OmniwidgetError
+
+    args = _parser().parse_args(argv)
+    try:
+        {"warp": _cmd_warp, "demo": _cmd_demo}[args.command](args)
+    except OmniwidgetError as exc:
+        print(f"omniwidget {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as exc:
+        print(f"omniwidget {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

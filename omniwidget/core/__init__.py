@@ -1,0 +1,32 @@
+"""The numerical core: numpy, scipy and OpenCV only; never imports a widget or plotting package."""
+
+from .coords import lonlat_to_px, lonlat_to_xyz, px_to_lonlat, xyz_to_lonlat
+from .errors import BlendingUnavailableError, HandlesError, ImageError, OmniwidgetError
+from .handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
+from .io import read_image, write_image
+from .moebius import Moebius
+from .warp import WarpResult, warp, warp_moebius
+
+__all__ = [
+    "BlendingUnavailableError",
+    "CageHandle",
+    "Handles",
+    "HandlesError",
+    "ImageError",
+    "LineHandle",
+    "Moebius",
+    "OmniwidgetError",
+    "Options",
+    "PointHandle",
+    "WarpResult",
+    "load_handles",
+    "lonlat_to_px",
+    "lonlat_to_xyz",
+    "px_to_lonlat",
+    "read_image",
+    "save_handles",
+    "warp",
+    "warp_moebius",
+    "write_image",
+    "xyz_to_lonlat",
+]

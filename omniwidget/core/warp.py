@@ -1,0 +1,256 @@
+"""Warping an equirectangular image by an inverse map of the sphere.
+
+For each output pixel the inverse map gives the input direction it shows; the input is
+then resampled there (nearest, bilinear or bicubic) by OpenCV's ``remap``. The input is
+first padded so that sampling wraps across the ±180° seam and continues *over* the poles
+(the row above the top row is the top row half a turn away), so neighbourhoods are right
+everywhere on the sphere. The map is computed in blocks of rows, in two threads, straight
+into the float32 array ``remap`` reads: memory stays at a few bytes per pixel.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import coords
+from .errors import BlendingUnavailableError, ImageError
+from .handles import Handles
+from .io import check_panorama
+from .moebius import Moebius
+
+__all__ = ["ORDERS", "WarpResult", "grid_inverse", "inverse_lonlat", "remap", "warp", "warp_moebius"]
+
+Order = Literal["nearest", "bilinear", "bicubic"]
+ORDERS: tuple[Order, ...] = ("nearest", "bilinear", "bicubic")
+#: Rows of source padding: bicubic reads two pixels beyond the sample on each side.
+PAD = 3
+BLOCK_ROWS = 128
+
+#: ``fn(lon, lat) -> (src_lon, src_lat)``: radians; ``lon`` shape (W,), ``lat`` shape (h,),
+#: results shape (h, W). The inverse map of a warp, evaluated on a block of the output grid.
+GridInverse = Callable[[NDArray[np.float64], NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]
+
+
+def grid_inverse(m: Moebius) -> GridInverse:
+    """The grid evaluator of the Möbius map ``m`` (pass the *inverse* of the warp's map).
+
+    Uses that grid rows share a latitude: the homogeneous coordinates of a row are an
+    outer product, so the matrix acts on ``W + h`` numbers before the per-pixel work.
+    The source latitude comes from ``atan2(|U|² - |V|², 2 |U V̄|)``, exact at the poles.
+    """
+    (a, b), (c, d) = m.matrix
+
+    def fn(lon: NDArray[np.float64], lat: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        e = np.exp(1j * lon)
+        cos_lat, sin_lat = np.cos(lat)[:, None], np.sin(lat)[:, None]
+        k = int(np.count_nonzero(sin_lat > 0))  # rows run north to south: the first k are northern
+        if np.any(sin_lat[:k] <= 0) or np.any(sin_lat[k:] > 0):
+            raise ValueError("grid rows must run from north to south")
+        big_u = np.empty((len(lat), len(lon)), np.complex128)
+        big_v = np.empty_like(big_u)
+        # northern rows: [u : v] = [1 + sin(lat) : cos(lat) conj(e)]
+        ce = np.conj(e)
+        big_u[:k] = cos_lat[:k] * (b * ce) + a * (1.0 + sin_lat[:k])
+        big_v[:k] = cos_lat[:k] * (d * ce) + c * (1.0 + sin_lat[:k])
+        # southern rows: [u : v] = [cos(lat) e : 1 - sin(lat)]
+        big_u[k:] = cos_lat[k:] * (a * e) + b * (1.0 - sin_lat[k:])
+        big_v[k:] = cos_lat[k:] * (c * e) + d * (1.0 - sin_lat[k:])
+        w = big_u * np.conj(big_v)
+        uu = big_u.real**2 + big_u.imag**2
+        uu -= big_v.real**2 + big_v.imag**2
+        return np.arctan2(w.imag, w.real), np.arctan2(uu, 2.0 * np.abs(w))
+
+    return fn
+
+
+def _blocks(height: int) -> list[slice]:
+    return [slice(s, min(s + BLOCK_ROWS, height)) for s in range(0, height, BLOCK_ROWS)]
+
+
+def _run_blocks(height: int, work: Callable[[slice], None]) -> None:
+    blocks = _blocks(height)
+    threads = min(len(blocks), os.cpu_count() or 1, 4)
+    if threads <= 1:
+        for block in blocks:
+            work(block)
+        return
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(work, blocks))
+
+
+def inverse_lonlat(fn: GridInverse, width: int) -> NDArray[np.float64]:
+    """Evaluate an inverse map on the full output grid, in float64 degrees.
+
+    Parameters
+    ----------
+    fn : GridInverse
+    width : int
+        Output width; the height is ``width / 2``.
+
+    Returns
+    -------
+    ndarray of float64, shape (width / 2, width, 2)
+        For each output pixel centre, the input ``[lon, lat]`` it shows.
+    """
+    lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
+    out = np.empty((width // 2, width, 2))
+
+    def work(rows: slice) -> None:
+        src_lon, src_lat = fn(lon, lat[rows])
+        out[rows, :, 0] = np.degrees(src_lon)
+        out[rows, :, 1] = np.degrees(src_lat)
+
+    _run_blocks(width // 2, work)
+    return out
+
+
+def _remap_coordinates(fn: GridInverse, width: int, src_width: int, offset: float) -> NDArray[np.float32]:
+    """Source pixel coordinates ``(x, y) + offset`` of every output pixel, float32 (H, W, 2)."""
+    lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
+    out = np.empty((width // 2, width, 2), dtype=np.float32)
+    kx = src_width / (2 * math.pi)
+    x0 = src_width / 2 - 0.5 + offset  # lon = 0 sits at x = W/2 - 0.5
+    y0 = src_width / 4 - 0.5 + offset  # lat = 0 sits at y = H/2 - 0.5
+
+    def work(rows: slice) -> None:
+        src_lon, src_lat = fn(lon, lat[rows])
+        out[rows, :, 0] = src_lon * kx + x0
+        out[rows, :, 1] = y0 - src_lat * kx
+
+    _run_blocks(width // 2, work)
+    return out
+
+
+def pad_panorama(image: NDArray, pad: int = PAD) -> NDArray:
+    """Pad a panorama by ``pad`` pixels: columns wrap at the seam, rows continue over the poles."""
+    h, w = image.shape[:2]
+    if pad > h or w % 2:
+        raise ImageError(f"cannot pad a {w} x {h} panorama by {pad} pixels")
+    half = w // 2
+    top = np.roll(image[pad - 1 :: -1], half, axis=1)  # row -1 is row 0 half a turn away, ...
+    bottom = np.roll(image[h - 1 : h - pad - 1 : -1], half, axis=1)
+    rows = np.concatenate([top, image, bottom], axis=0)
+    return np.concatenate([rows[:, w - pad :], rows, rows[:, :pad]], axis=1)
+
+
+def remap(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bilinear") -> NDArray:
+    """Sample a padded panorama at float32 pixel coordinates with OpenCV.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H + 2 PAD, W + 2 PAD[, C])
+        Output of :func:`pad_panorama`.
+    coordinates : ndarray of float32, shape (h, w, 2)
+        ``(x, y)`` in the padded image.
+    order : {"nearest", "bilinear", "bicubic"}
+
+    Returns
+    -------
+    ndarray, shape (h, w[, C]), the image's dtype
+    """
+    import cv2
+
+    if order not in ORDERS:
+        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
+    interpolation = {"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR, "bicubic": cv2.INTER_CUBIC}[order]
+    out = cv2.remap(image, coordinates, None, interpolation, borderMode=cv2.BORDER_REPLICATE)
+    if image.ndim == 3 and out.ndim == 2:  # OpenCV drops a single channel axis
+        out = out[..., None]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class WarpResult:
+    """The output of a warp.
+
+    Attributes
+    ----------
+    image : ndarray, shape (H, W[, C])
+        The warped panorama, in the input's dtype and channels.
+    moebius : Moebius
+        The map from the input sphere to the output sphere.
+    source_width : int
+        Width of the input image.
+    """
+
+    image: NDArray
+    moebius: Moebius
+    source_width: int
+
+    def inverse_map(self) -> NDArray[np.float32]:
+        """For each output pixel centre, the input ``[lon, lat]`` in degrees it shows, float32 (H, W, 2).
+
+        Longitudes are in ``[-180, 180]``.
+        """
+        width = self.image.shape[1]
+        return inverse_lonlat(grid_inverse(self.moebius.inverse), width).astype(np.float32)
+
+
+def warp_moebius(image: NDArray, moebius: Moebius, *, width: int | None = None, order: Order = "bilinear") -> WarpResult:
+    """Warp a panorama by one Möbius map of the sphere.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W[, C])
+        Equirectangular, ``W = 2 H``; uint8, uint16, float32 or float64; 1 to 4 channels.
+    moebius : Moebius
+        The forward map, input sphere to output sphere: the output shows ``image`` moved by it.
+    width : int, optional
+        Output width (even); the height is half of it. Default: the input's width.
+    order : {"nearest", "bilinear", "bicubic"}
+
+    Returns
+    -------
+    WarpResult
+    """
+    check_panorama(image)
+    src_width = image.shape[1]
+    width = src_width if width is None else width
+    if isinstance(width, bool) or not isinstance(width, (int, np.integer)) or width < 2 or width % 2:
+        raise ValueError(f"width must be an even whole number of at least 2, got {width!r}")
+    if order not in ORDERS:
+        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
+    if moebius.is_identity() and width == src_width:
+        return WarpResult(image.copy(), moebius, src_width)
+    coordinates = _remap_coordinates(grid_inverse(moebius.inverse), int(width), src_width, PAD)
+    return WarpResult(remap(pad_panorama(image), coordinates, order), moebius, src_width)
+
+
+def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: Order = "bilinear") -> WarpResult:
+    """Warp a panorama by its handles.
+
+    An empty document gives back the input unchanged (a copy, bit for bit). When all the
+    handles' maps are one map (one point or line handle, or cages that stay), the result
+    is exactly that map. Several different maps need the bounded biharmonic blend.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W[, C])
+        See :func:`warp_moebius`.
+    handles : Handles
+    width : int, optional
+    order : {"nearest", "bilinear", "bicubic"}
+
+    Raises
+    ------
+    BlendingUnavailableError
+        When the handles define different maps, until the blend lands.
+    """
+    if not isinstance(handles, Handles):
+        raise TypeError(f"handles must be a Handles document (see Handles.from_dict), got {type(handles).__name__}")
+    maps = handles.maps()
+    moebius = maps[0] if maps else Moebius.identity()
+    if any(not m.isclose(moebius) for m in maps[1:]):
+        raise BlendingUnavailableError(
+            f"{len(handles)} handles define {len(maps)} different Möbius maps; blending them "
+            "(bounded biharmonic weights) is not in this version yet: warp one handle at a time"
+        )
+    return warp_moebius(image, moebius, width=width, order=order)

@@ -1,0 +1,31 @@
+"""Shared fixtures: seeded randomness and small helpers that speak [lon, lat] in degrees."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from omniwidget.core import coords
+
+SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20201121)
+
+
+def random_lonlat(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Points uniformly distributed on the sphere, as [lon, lat] degrees, shape (n, 2)."""
+    xyz = rng.normal(size=(n, 3))
+    return coords.xyz_to_lonlat(xyz / np.linalg.norm(xyz, axis=1, keepdims=True))
+
+
+def offset(lonlat, bearing_deg: float, distance_deg: float) -> np.ndarray:
+    """The point ``distance_deg`` away from ``lonlat`` heading ``bearing_deg`` (0 east, 90 north)."""
+    p = coords.lonlat_to_xyz(lonlat)
+    east, north = coords.local_frame(lonlat)
+    b, d = np.radians(bearing_deg), np.radians(distance_deg)
+    return coords.xyz_to_lonlat(np.cos(d) * p + np.sin(d) * (np.cos(b) * east + np.sin(b) * north))

@@ -1,0 +1,120 @@
+import hashlib
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from omniwidget.cli import main
+from omniwidget.core import coords
+from omniwidget.core.io import read_image, write_image
+from omniwidget.core.moebius import Moebius
+
+POINT = {"format": "omniwidget.handles", "version": 1, "handles": [{"kind": "point", "position": [10, 20], "target": [35, -5], "rotation": 25.0, "scale": 1.6}]}
+
+
+@pytest.fixture
+def files(tmp_path):
+    lon, lat = coords.grid_lonlat(256)
+    gx, gy = np.meshgrid(lon, lat)
+    image = np.stack([(gx + 180) / 360 * 255, (gy + 90) / 180 * 255, np.full_like(gx, 128)], axis=-1).astype(np.uint8)
+    write_image(tmp_path / "in.png", image)
+    (tmp_path / "h.json").write_text(json.dumps(POINT))
+    return tmp_path
+
+
+def _digest(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_warp_writes_the_image_and_the_map(files, capsys):
+    before = _digest(files / "in.png")
+    code = main(["warp", str(files / "in.png"), "-H", str(files / "h.json"), "-o", str(files / "out.png"), "--map", str(files / "map.npy"), "--width", "128"])
+    assert code == 0
+    assert _digest(files / "in.png") == before  # the input is never modified
+    out = read_image(files / "out.png")
+    assert out.shape == (64, 128, 3) and out.dtype == np.uint8
+    inv = np.load(files / "map.npy")
+    assert inv.dtype == np.float32 and inv.shape == (64, 128, 2)
+    m = Moebius.point_map([10, 20], [35, -5], 1.6, 25.0)
+    lon, lat = coords.grid_lonlat(128)
+    assert coords.angular_distance(inv, m.inverse(np.stack(np.meshgrid(lon, lat), axis=-1))).max() < 1e-4
+    assert sorted(p.name for p in files.iterdir()) == ["h.json", "in.png", "map.npy", "out.png"]  # no temporary files
+
+
+def _run_bad(files, capsys, argv):
+    listing = sorted(p.name for p in files.iterdir())
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert sorted(p.name for p in files.iterdir()) == listing  # nothing written
+    return err
+
+
+def test_bad_inputs_give_one_line_and_exit_2(files, capsys):
+    d = str(files)
+    (files / "wide.png").write_bytes((files / "in.png").read_bytes())
+    write_image(files / "wide.png", np.zeros((10, 30, 3), np.uint8))
+    (files / "empty.jpg").write_bytes(b"")
+    (files / "text.png").write_text("not an image")
+    (files / "bad.json").write_text('{"handles": [{"kind": "point", "position": [10, 95]}]}')
+    (files / "two.json").write_text(json.dumps({"handles": [POINT["handles"][0], {"kind": "line", "start": [0, 0], "end": [30, 10]}]}))
+    cases = {
+        "missing.png: cannot read": ["warp", f"{d}/missing.png", "-H", f"{d}/h.json", "-o", f"{d}/o.png"],
+        "empty.jpg: the file is empty": ["warp", f"{d}/empty.jpg", "-H", f"{d}/h.json", "-o", f"{d}/o.png"],
+        "text.png: not an image": ["warp", f"{d}/text.png", "-H", f"{d}/h.json", "-o", f"{d}/o.png"],
+        "wide.png: an equirectangular panorama is twice as wide as high, got 30 x 10": ["warp", f"{d}/wide.png", "-H", f"{d}/h.json", "-o", f"{d}/o.png"],
+        "bad.json: handles[0].position[1] (latitude): 95 is out of range": ["warp", f"{d}/in.png", "-H", f"{d}/bad.json", "-o", f"{d}/o.png"],
+        "nope.json: cannot read the handles file": ["warp", f"{d}/in.png", "-H", f"{d}/nope.json", "-o", f"{d}/o.png"],
+        "2 handles define 2 different Möbius maps": ["warp", f"{d}/in.png", "-H", f"{d}/two.json", "-o", f"{d}/o.png"],
+        "would overwrite the input": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/in.png"],
+        "does not exist": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/no/such/dir/o.png"],
+        "must end in": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/o.xyz"],
+        "map file must end in .npy": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/o.png", "--map", f"{d}/m.txt"],
+        "--width 101: the width must be even": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/o.png", "--width", "101"],
+        "the following arguments are required": ["warp", f"{d}/in.png", "-o", f"{d}/o.png"],
+    }
+    for message, argv in cases.items():
+        if argv[0] == "warp" and "-H" not in argv:
+            with pytest.raises(SystemExit) as info:
+                main(argv)
+            assert info.value.code == 2
+            err = capsys.readouterr().err
+            assert message in err and err.count("\n") == 1
+            continue
+        assert message in _run_bad(files, capsys, argv), message
+
+
+def test_the_command_runs_as_a_program(files):
+    proc = subprocess.run([sys.executable, "-m", "omniwidget", "warp", str(files / "in.png"), "-H", str(files / "h.json"), "-o", str(files / "o.jpg")], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert read_image(files / "o.jpg").shape == (128, 256, 3)
+    proc = subprocess.run([sys.executable, "-m", "omniwidget", "warp", str(files / "nothing.png"), "-H", str(files / "h.json"), "-o", str(files / "o2.png")], capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+
+
+def test_demo_writes_a_before_and_after(tmp_path, capsys):
+    assert main(["demo", "-o", str(tmp_path)]) == 0
+    before, after = read_image(tmp_path / "before.png"), read_image(tmp_path / "after.png")
+    assert before.shape == after.shape == (512, 1024, 3)
+    assert np.mean(np.abs(before.astype(int) - after.astype(int))) > 10  # the panorama really changed
+    assert read_image(tmp_path / "before_after.png").shape == (1032, 1024, 3)
+    assert json.loads((tmp_path / "handles.json").read_text())["handles"][0]["kind"] == "line"
+
+
+json_values = st.recursive(st.one_of(st.none(), st.booleans(), st.floats(), st.integers(-400, 400), st.text(max_size=4)), lambda kids: st.one_of(st.lists(kids, max_size=4), st.dictionaries(st.sampled_from(["kind", "position", "target", "start", "end", "handles", "vertices", "scale", "x"]), kids, max_size=4)), max_leaves=12)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(st.one_of(json_values, st.fixed_dictionaries({"handles": st.lists(json_values, max_size=3)})))
+def test_fuzzed_handles_files_never_give_a_traceback(files, capsys, data):
+    (files / "fuzz.json").write_text(json.dumps(data, allow_nan=True))
+    code = main(["warp", str(files / "in.png"), "-H", str(files / "fuzz.json"), "-o", str(files / "fuzz.png")])
+    err = capsys.readouterr().err
+    assert code in (0, 2)
+    assert (code == 0) == (err == "")
+    (files / "fuzz.png").unlink(missing_ok=True)
