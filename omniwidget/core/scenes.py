@@ -1,0 +1,597 @@
+"""Synthetic equirectangular scenes whose straight 3D lines are known exactly.
+
+:func:`synthetic_room` ray-casts a box-shaped room, seen from a camera inside it, into an
+equirectangular panorama: six pale faces, a dark grid painted on them and thicker dark
+lines along the twelve edges of the box. With the room it returns every drawn line as a
+:class:`SceneLine`, so tests and teaching notebooks have ground truth for line handles.
+
+Why the ground truth is exact: the straight 3D segment from ``A`` to ``B`` and the camera
+span a plane through the camera, so the segment is seen along the great circle where that
+plane cuts the viewing sphere. Its image is therefore exactly the geodesic (great-circle
+arc, :func:`omniwidget.core.coords.geodesic`) between the directions of ``A`` and ``B``.
+
+Frames
+------
+*Room frame*: the box is axis-aligned, centred at the origin, ``+z`` up; the camera
+position is given in this frame, in metres.
+
+*Camera frame*: the camera at the origin, ``+z`` up, and the room turned by ``yaw``
+degrees counter-clockwise (seen from above) about the vertical axis. Longitude and
+latitude of the panorama are those of :mod:`omniwidget.core.coords` in this frame, so a
+camera-frame point ``p`` is seen at ``coords.xyz_to_lonlat(p)``. A turn about the vertical
+axis only shifts longitudes: the room-frame direction of a pixel at ``(lon, lat)`` is the
+direction of ``(lon - yaw, lat)``.
+
+Faces are named by the room-frame axis they are perpendicular to: ``"west"`` (``-x``),
+``"east"`` (``+x``), ``"south"`` (``-y``), ``"north"`` (``+y``), ``"floor"`` (``-z``) and
+``"ceiling"`` (``+z``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, replace
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import coords
+
+__all__ = [
+    "FACE_COLORS",
+    "FACE_NAMES",
+    "LINE_COLOR",
+    "Scene",
+    "SceneLine",
+    "subdivide_line",
+    "synthetic_room",
+]
+
+#: Face names in index order: face ``i`` is perpendicular to room axis ``i // 2``, on its
+#: negative side for even ``i`` and its positive side for odd ``i``.
+FACE_NAMES: tuple[str, ...] = ("west", "east", "south", "north", "floor", "ceiling")
+
+#: The pale base colour (RGB, uint8 levels) of each face.
+FACE_COLORS: dict[str, tuple[int, int, int]] = {
+    "west": (208, 224, 242),  # pale blue
+    "east": (242, 214, 210),  # pale pink
+    "south": (214, 238, 210),  # pale green
+    "north": (240, 232, 196),  # pale yellow
+    "floor": (228, 212, 188),  # beige
+    "ceiling": (238, 238, 238),  # light grey
+}
+
+#: The colour (RGB) of grid lines and edges.
+LINE_COLOR: tuple[int, int, int] = (36, 40, 52)
+
+# Row 6 of the palette is the ink; rows 0-5 are the faces in FACE_NAMES order.
+_PALETTE = np.array([FACE_COLORS[name] for name in FACE_NAMES] + [LINE_COLOR], dtype=np.uint8)
+_INK = len(FACE_NAMES)
+
+# Supersampled pixels ray-cast at a time: bounds the temporary arrays to a few MB.
+_SAMPLES_PER_BLOCK = 1 << 16
+
+LonLat = tuple[float, float]
+Point3 = tuple[float, float, float]
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SceneLine:
+    """A straight 3D segment of the scene and its exact image in the panorama.
+
+    Parameters
+    ----------
+    start, end : (float, float)
+        ``[lon, lat]`` in degrees of the endpoints' directions. The segment is drawn along
+        the great-circle arc between them (never antipodal: the segment does not pass
+        through the camera).
+    kind : {"edge", "grid"}
+        ``"edge"`` for one of the twelve edges of the box, ``"grid"`` for a grid line.
+    start_3d, end_3d : (float, float, float)
+        The endpoints in metres, in the camera frame (camera at the origin), so that
+        ``coords.xyz_to_lonlat(start_3d) == start``.
+    faces : tuple of str
+        The face a grid line is painted on, or the two faces an edge joins.
+    """
+
+    start: LonLat
+    end: LonLat
+    kind: Literal["edge", "grid"]
+    start_3d: Point3
+    end_3d: Point3
+    faces: tuple[str, ...] = ()
+
+    @property
+    def length(self) -> float:
+        """Angular length of the arc in degrees (:func:`coords.angular_distance`)."""
+        return float(coords.angular_distance(self.start, self.end))
+
+    @property
+    def max_abs_lat(self) -> float:
+        """The largest ``|latitude|`` in degrees reached anywhere on the arc.
+
+        An arc can climb higher than both its endpoints, so besides them this checks the
+        highest and lowest points of the whole great circle and keeps those on the arc.
+        """
+        p, q = coords.lonlat_to_xyz([self.start, self.end])
+        normal = np.cross(p, q)
+        normal /= np.linalg.norm(normal)
+        candidates = [p, q]
+        # The top of the great circle: the north pole projected onto the circle's plane.
+        top = np.array([0.0, 0.0, 1.0]) - normal[2] * normal
+        if np.linalg.norm(top) > 1e-12:  # else the circle is the equator
+            top /= np.linalg.norm(top)
+            for c in (top, -top):
+                if np.dot(np.cross(p, c), normal) >= 0 and np.dot(np.cross(c, q), normal) >= 0:
+                    candidates.append(c)
+        return float(np.max(np.abs(coords.xyz_to_lonlat(np.array(candidates))[:, 1])))
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A rendered synthetic room and the ground truth of its lines.
+
+    Parameters
+    ----------
+    image : ndarray of uint8, shape (width // 2, width, 3)
+        The equirectangular panorama, RGB.
+    lines : list of SceneLine
+        Every drawn line: the 12 edges first, then the grid lines face by face.
+    size : (float, float, float)
+        Room dimensions along the room frame's x, y, z, metres.
+    camera : (float, float, float)
+        Camera position in the room frame, metres.
+    yaw : float
+        Turn of the room about the vertical axis, degrees counter-clockwise.
+    grid : float or None
+        Grid spacing in metres, ``None`` for no grid.
+    line_width, edge_width : float
+        Painted width of grid lines and of edge lines, metres.
+    """
+
+    image: NDArray[np.uint8]
+    lines: list[SceneLine]
+    size: Point3
+    camera: Point3
+    yaw: float
+    grid: float | None
+    line_width: float
+    edge_width: float
+
+    @property
+    def width(self) -> int:
+        """Image width in pixels."""
+        return int(self.image.shape[1])
+
+    def lines_where(
+        self,
+        *,
+        kind: Literal["edge", "grid"] | None = None,
+        min_length: float = 0.0,
+        max_length: float = 180.0,
+        max_abs_lat: float = 90.0,
+    ) -> list[SceneLine]:
+        """Pick the lines of a given kind, angular length and latitude range.
+
+        Parameters
+        ----------
+        kind : {"edge", "grid"}, optional
+            Keep only this kind; all kinds by default.
+        min_length, max_length : float
+            Keep arcs with ``min_length <= length <= max_length`` degrees.
+        max_abs_lat : float
+            Keep arcs that stay within ``±max_abs_lat`` degrees of latitude everywhere,
+            not only at their endpoints.
+
+        Returns
+        -------
+        list of SceneLine
+            In the order of :attr:`lines`.
+
+        Examples
+        --------
+        Lines 20-60 degrees long, well away from the poles::
+
+            scene.lines_where(min_length=20, max_length=60, max_abs_lat=60)
+        """
+        if kind not in (None, "edge", "grid"):
+            raise ValueError(f"kind must be 'edge', 'grid' or None, got {kind!r}")
+        return [
+            line
+            for line in self.lines
+            if (kind is None or line.kind == kind) and min_length <= line.length <= max_length and line.max_abs_lat <= max_abs_lat
+        ]
+
+    def face_at(self, lonlat: ArrayLike) -> NDArray[np.str_]:
+        """Name of the face seen in each direction.
+
+        Parameters
+        ----------
+        lonlat : array_like, shape (..., 2)
+            ``[lon, lat]`` in degrees.
+
+        Returns
+        -------
+        ndarray of str, shape (...)
+            Names from :data:`FACE_NAMES`.
+        """
+        lonlat = np.asarray(lonlat, dtype=np.float64)
+        room_lonlat = np.stack([lonlat[..., 0] - self.yaw, lonlat[..., 1]], axis=-1)
+        face, _ = _cast_rays(coords.lonlat_to_xyz(room_lonlat), np.array(self.camera), np.array(self.size) / 2)
+        return np.array(FACE_NAMES)[face]
+
+
+def subdivide_line(line: SceneLine, max_length: float) -> list[SceneLine]:
+    """Cut a line into consecutive pieces of at most ``max_length`` degrees each.
+
+    Each piece is again a straight 3D segment (a part of the original), so its image is
+    still exactly the geodesic between its endpoints. The cut points are placed at equal
+    angles as seen from the camera.
+
+    Parameters
+    ----------
+    line : SceneLine
+    max_length : float
+        Longest piece in degrees, ``> 0``.
+
+    Returns
+    -------
+    list of SceneLine
+        ``ceil(line.length / max_length)`` pieces from ``line.start`` to ``line.end``, each
+        with the kind and faces of ``line``; ``[line]`` if it is short enough already.
+    """
+    if not (isinstance(max_length, int | float) and math.isfinite(max_length) and max_length > 0):
+        raise ValueError(f"max_length must be a positive number of degrees, got {max_length!r}")
+    count = math.ceil(line.length / max_length)
+    if count <= 1:
+        return [line]
+    a = np.array(line.start_3d)
+    b = np.array(line.end_3d)
+    # An orthonormal pair (u, v) spanning the plane of the camera and the segment, u
+    # pointing at the start and v turned towards the end: the direction at angle phi
+    # from the start is cos(phi) u + sin(phi) v.
+    u = a / np.linalg.norm(a)
+    v = b - np.dot(b, u) * u
+    v /= np.linalg.norm(v)
+    total = math.atan2(np.dot(b, v), np.dot(b, u))
+    points = [a]
+    for k in range(1, count):
+        phi = total * k / count
+        points.append(_ray_meets_line(math.cos(phi) * u + math.sin(phi) * v, a, b))
+    points.append(b)
+    pieces = [_scene_line(p, q, line.kind, line.faces) for p, q in zip(points[:-1], points[1:], strict=True)]
+    # Keep the original endpoints bit for bit.
+    pieces[0] = replace(pieces[0], start=line.start, start_3d=line.start_3d)
+    pieces[-1] = replace(pieces[-1], end=line.end, end_3d=line.end_3d)
+    return pieces
+
+
+def synthetic_room(
+    width: int = 2048,
+    *,
+    size: Sequence[float] = (8.0, 6.0, 3.0),
+    camera: Sequence[float] = (0.7, -0.4, 0.2),
+    yaw: float = 17.0,
+    grid: float | None = 1.0,
+    line_width: float = 0.02,
+    edge_width: float | None = None,
+    supersample: int = 2,
+    noise: float = 0.0,
+    seed: int | None = None,
+) -> Scene:
+    """Render a box room seen from inside as an equirectangular panorama.
+
+    Every pixel is ray-cast: ``supersample x supersample`` rays, spread evenly over the
+    pixel, each finds the face of the box it hits and whether the hit point lies on
+    painted ink; the pixel is the mean of their colours (a box filter, i.e.
+    anti-aliasing). Line widths are in metres on the walls, so near lines look thicker
+    than far ones, as in a photograph.
+
+    Parameters
+    ----------
+    width : int
+        Image width in pixels: even and at least 8. The height is ``width // 2``.
+    size : (float, float, float)
+        Room dimensions along x, y (horizontal) and z (vertical), metres, all ``> 0``.
+        The box is centred at the origin of the room frame.
+    camera : (float, float, float)
+        Camera position in the room frame, metres; strictly inside the box.
+    yaw : float
+        Turn of the room about the vertical axis, degrees counter-clockwise seen from
+        above. The default keeps the edges off the ±180° seam and the image axes.
+    grid : float or None
+        Spacing of the grid lines in metres, ``> line_width``; each face gets lines
+        parallel to its edges at multiples of ``grid`` from the room's lower corner
+        (``-size / 2``). ``None`` draws only the edges.
+    line_width : float
+        Painted width of a grid line, metres, ``> 0``.
+    edge_width : float, optional
+        Painted width of an edge line, metres, ``> 0``: half of it on each of the two
+        faces that meet there. Defaults to ``3 * line_width``.
+    supersample : int
+        Rays per pixel along each axis, ``>= 1`` (1 gives aliased lines).
+    noise : float
+        Standard deviation, in 8-bit levels, of Gaussian noise added to the image, ``>= 0``.
+        With the default 0 the image is clean and ``seed`` is unused.
+    seed : int, optional
+        Seed of the noise, for a reproducible noisy image.
+
+    Returns
+    -------
+    Scene
+        ``image`` of uint8, shape ``(width // 2, width, 3)``, RGB, and the ``lines``:
+        the 12 edges of the box and every grid line, each spanning its face from edge to
+        edge.
+
+    Raises
+    ------
+    ValueError
+        If a parameter is out of range; the message names it.
+
+    Notes
+    -----
+    Memory stays small at any width: rays are cast in blocks of rows of about
+    ``2**16`` rays each.
+    """
+    width = _integer("width", width, minimum=8)
+    if width % 2:
+        raise ValueError(f"width must be even (the height is width / 2), got {width}")
+    size_ = _vector3("size", size)
+    if np.any(size_ <= 0):
+        raise ValueError(f"size must be three positive lengths in metres, got {tuple(size)}")
+    camera_ = _vector3("camera", camera)
+    half = size_ / 2
+    if np.any(np.abs(camera_) >= half):
+        inside = ", ".join(f"|{axis}| < {h:g}" for axis, h in zip("xyz", half, strict=True))
+        raise ValueError(f"camera {tuple(camera)} is not strictly inside the room: it needs {inside} metres")
+    yaw = _finite("yaw", yaw)
+    line_width = _positive("line_width", line_width)
+    edge_width = 3 * line_width if edge_width is None else _positive("edge_width", edge_width)
+    if grid is not None:
+        grid = _positive("grid", grid)
+        if grid <= line_width:
+            raise ValueError(f"grid ({grid} m) must be larger than line_width ({line_width} m)")
+    supersample = _integer("supersample", supersample, minimum=1)
+    noise = _finite("noise", noise)
+    if noise < 0:
+        raise ValueError(f"noise must be >= 0, got {noise}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
+        raise ValueError(f"seed must be an integer or None, got {seed!r}")
+
+    grid_lines = [_grid_positions(h, grid) for h in half]
+    image = _render(width, supersample, camera_, half, yaw, grid, grid_lines, line_width, edge_width)
+    if noise > 0:
+        rng = np.random.default_rng(seed)
+        noisy = image + rng.normal(0.0, noise, image.shape)
+        image = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+
+    to_camera = _yaw_matrix(yaw)
+    lines = [
+        _scene_line(to_camera @ (p - camera_), to_camera @ (q - camera_), kind, faces)
+        for p, q, kind, faces in _room_segments(half, grid_lines)
+    ]
+    return Scene(
+        image=image,
+        lines=lines,
+        size=tuple(size_.tolist()),
+        camera=tuple(camera_.tolist()),
+        yaw=yaw,
+        grid=grid,
+        line_width=line_width,
+        edge_width=edge_width,
+    )
+
+
+# --- geometry ------------------------------------------------------------------------
+
+
+def _yaw_matrix(yaw: float) -> FloatArray:
+    """Rotation by ``yaw`` degrees counter-clockwise about ``+z``: room frame to camera frame."""
+    c, s = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _grid_positions(half: float, grid: float | None) -> FloatArray:
+    """Coordinates of the grid lines across an axis spanning ``[-half, half]``.
+
+    Lines sit at ``-half + k * grid`` for ``k >= 1``, strictly inside the span: a line
+    falling on the far edge is the edge itself, not a grid line.
+    """
+    if grid is None:
+        return np.empty(0)
+    count = math.floor(2 * half / grid * (1 - 1e-12))
+    return -half + grid * np.arange(1, count + 1)
+
+
+def _room_segments(half: FloatArray, grid_lines: list[FloatArray]) -> Iterator[tuple[FloatArray, FloatArray, str, tuple[str, ...]]]:
+    """Yield ``(start, end, kind, faces)`` of every line in the room frame.
+
+    The 12 edges come first, then for each face and each of its two in-plane axes the
+    grid lines across that axis, each spanning the face along the remaining axis.
+    """
+    for axis in range(3):  # an edge runs along `axis`, at a corner of the other two
+        a, b = (i for i in range(3) if i != axis)
+        for sign_a in (-1, 1):
+            for sign_b in (-1, 1):
+                start = np.zeros(3)
+                start[a], start[b], start[axis] = sign_a * half[a], sign_b * half[b], -half[axis]
+                end = start.copy()
+                end[axis] = half[axis]
+                faces = (FACE_NAMES[2 * a + (sign_a > 0)], FACE_NAMES[2 * b + (sign_b > 0)])
+                yield start, end, "edge", faces
+    for face, name in enumerate(FACE_NAMES):
+        normal_axis, side = divmod(face, 2)
+        in_plane = [i for i in range(3) if i != normal_axis]
+        for across, along in (in_plane, in_plane[::-1]):
+            for position in grid_lines[across]:
+                start = np.zeros(3)
+                start[normal_axis] = half[normal_axis] if side else -half[normal_axis]
+                start[across] = position
+                start[along] = -half[along]
+                end = start.copy()
+                end[along] = half[along]
+                yield start, end, "grid", (name,)
+
+
+def _scene_line(p: FloatArray, q: FloatArray, kind: str, faces: tuple[str, ...]) -> SceneLine:
+    """Make the :class:`SceneLine` between camera-frame points ``p`` and ``q``."""
+    (lon0, lat0), (lon1, lat1) = coords.xyz_to_lonlat(np.array([p, q]))
+    return SceneLine(
+        start=(float(lon0), float(lat0)),
+        end=(float(lon1), float(lat1)),
+        kind=kind,
+        start_3d=tuple(float(c) for c in p),
+        end_3d=tuple(float(c) for c in q),
+        faces=faces,
+    )
+
+
+def _ray_meets_line(direction: FloatArray, a: FloatArray, b: FloatArray) -> FloatArray:
+    """Where the ray from the origin along ``direction`` meets the line through ``a`` and ``b``.
+
+    All three lie in one plane through the origin. Writing ``lam * direction = a + s (b - a)``
+    and crossing both sides with ``direction`` gives ``s``.
+    """
+    step = b - a
+    cross_step = np.cross(step, direction)
+    s = -np.dot(np.cross(a, direction), cross_step) / np.dot(cross_step, cross_step)
+    return a + s * step
+
+
+def _cast_rays(directions: FloatArray, camera: FloatArray, half: FloatArray) -> tuple[NDArray[np.uint8], list[FloatArray]]:
+    """Cast rays from ``camera`` (inside the box ``|x| <= half``) to the box's walls.
+
+    Parameters
+    ----------
+    directions : ndarray of float64, shape (..., 3)
+        Ray directions in the room frame, nonzero.
+    camera : ndarray of float64, shape (3,)
+    half : ndarray of float64, shape (3,)
+        Half the room size.
+
+    Returns
+    -------
+    face : ndarray of uint8, shape (...)
+        Index into :data:`FACE_NAMES` of the face each ray hits.
+    hit : list of three ndarrays of float64, shape (...)
+        The x, y and z room-frame coordinates of the hit points.
+    """
+    shape = directions.shape[:-1]
+    distance = np.full(shape, np.inf)
+    face = np.zeros(shape, dtype=np.uint8)
+    with np.errstate(divide="ignore"):
+        for axis in range(3):
+            d = directions[..., axis]
+            # Along this axis the ray heads for the wall on the side it points to and
+            # reaches it after this (positive) distance; infinite if d == 0.
+            t = np.where(d >= 0, half[axis] - camera[axis], half[axis] + camera[axis]) / np.abs(d)
+            closer = t < distance
+            distance = np.where(closer, t, distance)
+            face = np.where(closer, np.uint8(2 * axis) + (d > 0), face)
+    hit = [camera[axis] + distance * directions[..., axis] for axis in range(3)]
+    return face, hit
+
+
+def _ink(
+    face: NDArray[np.uint8],
+    hit: list[FloatArray],
+    half: FloatArray,
+    grid: float | None,
+    grid_lines: list[FloatArray],
+    line_width: float,
+    edge_width: float,
+) -> NDArray[np.bool_]:
+    """Whether each hit point lies on a painted grid line or edge band."""
+    normal_axis = face // 2
+    ink = np.zeros(face.shape, dtype=bool)
+    for axis, x in enumerate(hit):
+        on_line = half[axis] - np.abs(x) < edge_width / 2
+        positions = grid_lines[axis]
+        if positions.size:
+            # The grid line nearest to x, by its index in `positions`.
+            k = np.clip(np.rint((x - positions[0]) / grid), 0, positions.size - 1).astype(np.intp)
+            on_line |= np.abs(x - positions[k]) < line_width / 2
+        # The coordinate along a face's normal is constant on it and draws nothing.
+        ink |= on_line & (normal_axis != axis)
+    return ink
+
+
+def _render(
+    width: int,
+    supersample: int,
+    camera: FloatArray,
+    half: FloatArray,
+    yaw: float,
+    grid: float | None,
+    grid_lines: list[FloatArray],
+    line_width: float,
+    edge_width: float,
+) -> NDArray[np.uint8]:
+    """Ray-cast the room into a ``(width // 2, width, 3)`` uint8 image.
+
+    The rays are the pixel centres of an image ``supersample`` times larger, so each
+    output pixel averages a ``supersample x supersample`` block of evenly spread rays.
+    """
+    n = supersample
+    height = width // 2
+    lon, lat = coords.grid_lonlat(width * n)
+    room_lon = lon - yaw  # turning the room by +yaw turns the rays by -yaw
+    # One colour lookup table per channel, wide enough to sum n * n samples.
+    channels = [_PALETTE[:, c].astype(np.uint32) for c in range(3)]
+    image = np.empty((height, width, 3), dtype=np.uint8)
+    rows_per_block = max(1, _SAMPLES_PER_BLOCK // (width * n * n))
+    for row in range(0, height, rows_per_block):
+        rows = min(rows_per_block, height - row)
+        lat_block = lat[row * n : (row + rows) * n]
+        lonlat = np.stack(np.broadcast_arrays(room_lon[None, :], lat_block[:, None]), axis=-1)
+        face, hit = _cast_rays(coords.lonlat_to_xyz(lonlat), camera, half)
+        ink = _ink(face, hit, half, grid, grid_lines, line_width, edge_width)
+        colour_index = np.where(ink, np.uint8(_INK), face)  # (rows * n, width * n)
+        for c, table in enumerate(channels):
+            # Sum each pixel's n x n samples: first down the rows, then along the columns.
+            total = table[colour_index].reshape(rows, n, width * n).sum(axis=1)
+            total = total.reshape(rows, width, n).sum(axis=2)
+            # Round half up, in integers: exact and the same on every platform.
+            image[row : row + rows, :, c] = (2 * total + n * n) // (2 * n * n)
+    return image
+
+
+# --- validation ----------------------------------------------------------------------
+
+
+def _finite(name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return float(value)
+
+
+def _positive(name: str, value: object) -> float:
+    value = _finite(name, value)
+    if value <= 0:
+        raise ValueError(f"{name} must be > 0, got {value}")
+    return value
+
+
+def _integer(name: str, value: object, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise ValueError(f"{name} must be an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name} must be at least {minimum}, got {value}")
+    return int(value)
+
+
+def _vector3(name: str, value: object) -> FloatArray:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be three numbers (x, y, z), got {value!r}") from None
+    if arr.shape != (3,):
+        raise ValueError(f"{name} must be three numbers (x, y, z), got {value!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return arr
