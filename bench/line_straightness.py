@@ -94,7 +94,9 @@ def main() -> None:
             if not rows:
                 continue
             eq4, best = np.array(rows).T
-            print(f"{lo:>4}-{hi:<3}° {len(rows):>6} {np.median(eq4):8.2f} {np.percentile(eq4, 95):8.2f} {eq4.max():8.2f} {np.nanmax(best):14.2f}")
+            print(
+                f"{lo:>4}-{hi:<3}° {len(rows):>6} {np.median(eq4):8.2f} {np.percentile(eq4, 95):8.2f} {eq4.max():8.2f} {np.nanmax(best):14.2f}"
+            )
 
 
 if __name__ == "__main__":

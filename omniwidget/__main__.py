@@ -1,3 +1,5 @@
+"""Run the command line: ``python -m omniwidget``."""
+
 import sys
 
 from .cli import main

@@ -43,8 +43,12 @@ def _parser() -> argparse.ArgumentParser:
     warp.add_argument("--map", type=Path, help="also save the inverse map: float32 (H, W, 2) input [lon, lat] per output pixel, .npy")
     warp.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
 
-    demo = sub.add_parser("demo", help="before/after of the bundled panorama", description="Rectify a line of the bundled panorama and write a before/after.")
-    demo.add_argument("-o", "--output-dir", type=Path, default=Path("omniwidget-demo"), help="folder for the pictures (default: ./omniwidget-demo)")
+    demo = sub.add_parser(
+        "demo", help="before/after of the bundled panorama", description="Rectify a line of the bundled panorama and write a before/after."
+    )
+    demo.add_argument(
+        "-o", "--output-dir", type=Path, default=Path("omniwidget-demo"), help="folder for the pictures (default: ./omniwidget-demo)"
+    )
     return parser
 
 

@@ -13,7 +13,11 @@ from omniwidget.core import coords
 from omniwidget.core.io import read_image, write_image
 from omniwidget.core.moebius import Moebius
 
-POINT = {"format": "omniwidget.handles", "version": 1, "handles": [{"kind": "point", "position": [10, 20], "target": [35, -5], "rotation": 25.0, "scale": 1.6}]}
+POINT = {
+    "format": "omniwidget.handles",
+    "version": 1,
+    "handles": [{"kind": "point", "position": [10, 20], "target": [35, -5], "rotation": 25.0, "scale": 1.6}],
+}
 
 
 @pytest.fixture
@@ -32,7 +36,20 @@ def _digest(path):
 
 def test_warp_writes_the_image_and_the_map(files, capsys):
     before = _digest(files / "in.png")
-    code = main(["warp", str(files / "in.png"), "-H", str(files / "h.json"), "-o", str(files / "out.png"), "--map", str(files / "map.npy"), "--width", "128"])
+    code = main(
+        [
+            "warp",
+            str(files / "in.png"),
+            "-H",
+            str(files / "h.json"),
+            "-o",
+            str(files / "out.png"),
+            "--map",
+            str(files / "map.npy"),
+            "--width",
+            "128",
+        ]
+    )
     assert code == 0
     assert _digest(files / "in.png") == before  # the input is never modified
     out = read_image(files / "out.png")
@@ -67,8 +84,22 @@ def test_bad_inputs_give_one_line_and_exit_2(files, capsys):
         "missing.png: cannot read": ["warp", f"{d}/missing.png", "-H", f"{d}/h.json", "-o", f"{d}/o.png"],
         "empty.jpg: the file is empty": ["warp", f"{d}/empty.jpg", "-H", f"{d}/h.json", "-o", f"{d}/o.png"],
         "text.png: not an image": ["warp", f"{d}/text.png", "-H", f"{d}/h.json", "-o", f"{d}/o.png"],
-        "wide.png: an equirectangular panorama is twice as wide as high, got 30 x 10": ["warp", f"{d}/wide.png", "-H", f"{d}/h.json", "-o", f"{d}/o.png"],
-        "bad.json: handles[0].position[1] (latitude): 95 is out of range": ["warp", f"{d}/in.png", "-H", f"{d}/bad.json", "-o", f"{d}/o.png"],
+        "wide.png: an equirectangular panorama is twice as wide as high, got 30 x 10": [
+            "warp",
+            f"{d}/wide.png",
+            "-H",
+            f"{d}/h.json",
+            "-o",
+            f"{d}/o.png",
+        ],
+        "bad.json: handles[0].position[1] (latitude): 95 is out of range": [
+            "warp",
+            f"{d}/in.png",
+            "-H",
+            f"{d}/bad.json",
+            "-o",
+            f"{d}/o.png",
+        ],
         "nope.json: cannot read the handles file": ["warp", f"{d}/in.png", "-H", f"{d}/nope.json", "-o", f"{d}/o.png"],
         "2 handles define 2 different Möbius maps": ["warp", f"{d}/in.png", "-H", f"{d}/two.json", "-o", f"{d}/o.png"],
         "would overwrite the input": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/in.png"],
@@ -90,10 +121,18 @@ def test_bad_inputs_give_one_line_and_exit_2(files, capsys):
 
 
 def test_the_command_runs_as_a_program(files):
-    proc = subprocess.run([sys.executable, "-m", "omniwidget", "warp", str(files / "in.png"), "-H", str(files / "h.json"), "-o", str(files / "o.jpg")], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "omniwidget", "warp", str(files / "in.png"), "-H", str(files / "h.json"), "-o", str(files / "o.jpg")],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 0, proc.stderr
     assert read_image(files / "o.jpg").shape == (128, 256, 3)
-    proc = subprocess.run([sys.executable, "-m", "omniwidget", "warp", str(files / "nothing.png"), "-H", str(files / "h.json"), "-o", str(files / "o2.png")], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "omniwidget", "warp", str(files / "nothing.png"), "-H", str(files / "h.json"), "-o", str(files / "o2.png")],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
 
 
@@ -106,7 +145,16 @@ def test_demo_writes_a_before_and_after(tmp_path, capsys):
     assert json.loads((tmp_path / "handles.json").read_text())["handles"][0]["kind"] == "line"
 
 
-json_values = st.recursive(st.one_of(st.none(), st.booleans(), st.floats(), st.integers(-400, 400), st.text(max_size=4)), lambda kids: st.one_of(st.lists(kids, max_size=4), st.dictionaries(st.sampled_from(["kind", "position", "target", "start", "end", "handles", "vertices", "scale", "x"]), kids, max_size=4)), max_leaves=12)
+json_values = st.recursive(
+    st.one_of(st.none(), st.booleans(), st.floats(), st.integers(-400, 400), st.text(max_size=4)),
+    lambda kids: st.one_of(
+        st.lists(kids, max_size=4),
+        st.dictionaries(
+            st.sampled_from(["kind", "position", "target", "start", "end", "handles", "vertices", "scale", "x"]), kids, max_size=4
+        ),
+    ),
+    max_leaves=12,
+)
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])

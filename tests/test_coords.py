@@ -20,7 +20,9 @@ def test_pixels_and_lonlat_round_trip(rng):
 
 
 def test_direction_convention():
-    np.testing.assert_allclose(coords.lonlat_to_xyz([[0, 0], [90, 0], [0, 90], [180, -90]]), [[1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, -1]], atol=1e-15)
+    np.testing.assert_allclose(
+        coords.lonlat_to_xyz([[0, 0], [90, 0], [0, 90], [180, -90]]), [[1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, -1]], atol=1e-15
+    )
 
 
 def test_xyz_round_trip_keeps_precision_near_the_poles(rng):

@@ -33,7 +33,15 @@ def test_round_trip_through_json(tmp_path):
 
 
 def test_defaults():
-    doc = Handles.from_dict({"handles": [{"kind": "point", "position": [1, 2]}, {"kind": "line", "start": [0, 0], "end": [10, 0]}, {"kind": "cage", "vertices": [[0, 0], [1, 0], [0, 1]]}]})
+    doc = Handles.from_dict(
+        {
+            "handles": [
+                {"kind": "point", "position": [1, 2]},
+                {"kind": "line", "start": [0, 0], "end": [10, 0]},
+                {"kind": "cage", "vertices": [[0, 0], [1, 0], [0, 1]]},
+            ]
+        }
+    )
     point, line, cage = doc.handles
     assert point.final == (1.0, 2.0) and point.scale == 1.0 and point.rotation == 0.0
     assert line.rectify and line.targets is None
@@ -175,7 +183,11 @@ handle_values = st.fixed_dictionaries(
 )
 documents = st.fixed_dictionaries(
     {"handles": st.lists(handle_values, max_size=4)},
-    optional={"format": st.sampled_from(["omniwidget.handles", "x"]), "version": st.sampled_from([1, 2, "1"]), "options": st.fixed_dictionaries({}, optional={"rectify": st.sampled_from(["all", "each", "none"])})},
+    optional={
+        "format": st.sampled_from(["omniwidget.handles", "x"]),
+        "version": st.sampled_from([1, 2, "1"]),
+        "options": st.fixed_dictionaries({}, optional={"rectify": st.sampled_from(["all", "each", "none"])}),
+    },
 )
 
 

@@ -80,7 +80,12 @@ def test_rotation_matches_the_rotation_matrix():
 
 @pytest.mark.parametrize(
     ("position", "target", "scale", "rotation"),
-    [([10, 20], [30, -10], 2.0, 30.0), ([170, 5], [-170, -5], 0.5, -120.0), ([0, 89.99], [60, 10], 1.0, 0.0), ([20, -90], [-45, 90], 3.0, 10.0)],
+    [
+        ([10, 20], [30, -10], 2.0, 30.0),
+        ([170, 5], [-170, -5], 0.5, -120.0),
+        ([0, 89.99], [60, 10], 1.0, 0.0),
+        ([20, -90], [-45, 90], 3.0, 10.0),
+    ],
 )
 def test_point_map_sends_centre_and_antipode_and_has_the_asked_derivative(position, target, scale, rotation):
     m = Moebius.point_map(position, target, scale, rotation)

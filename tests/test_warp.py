@@ -31,7 +31,15 @@ def map_at(lonlat_map: np.ndarray, lonlat) -> np.ndarray:
     x0, y0 = int(np.floor(x)), int(np.floor(y))
     fx, fy = x - x0, y - y0
     xyz = coords.lonlat_to_xyz(lonlat_map)
-    acc = sum(w * xyz[yy, xx % width] for (yy, xx, w) in ((y0, x0, (1 - fx) * (1 - fy)), (y0, x0 + 1, fx * (1 - fy)), (y0 + 1, x0, (1 - fx) * fy), (y0 + 1, x0 + 1, fx * fy)))
+    acc = sum(
+        w * xyz[yy, xx % width]
+        for (yy, xx, w) in (
+            (y0, x0, (1 - fx) * (1 - fy)),
+            (y0, x0 + 1, fx * (1 - fy)),
+            (y0 + 1, x0, (1 - fx) * fy),
+            (y0 + 1, x0 + 1, fx * fy),
+        )
+    )
     return coords.xyz_to_lonlat(acc)
 
 
@@ -91,7 +99,9 @@ def test_padding_continues_over_the_poles(rng):
     np.testing.assert_array_equal(padded[3:-3, :3], image[:, -3:])
 
 
-@pytest.mark.parametrize(("position", "target"), [([10.0, 20.0], [31.3, -8.7]), ([175.0, 5.0], [-178.2, 12.4]), ([-60.0, 70.0], [-75.5, 62.1])])
+@pytest.mark.parametrize(
+    ("position", "target"), [([10.0, 20.0], [31.3, -8.7]), ([175.0, 5.0], [-178.2, 12.4]), ([-60.0, 70.0], [-75.5, 62.1])]
+)
 def test_point_handle_output_pixel_at_target_shows_position(position, target):
     doc = Handles([PointHandle(tuple(position), tuple(target))])
     result = warp(np.zeros((W // 2, W), np.uint8), doc)

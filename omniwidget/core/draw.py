@@ -87,7 +87,7 @@ def draw_handles(image: NDArray, handles: Handles, *, stage: str = "input", thic
             _dot(canvas, points[0], colour, radius + 1)
         elif isinstance(h, CageHandle):
             vertices = h.vertices if stage == "input" else h.finals
-            for a, b in zip(vertices, vertices[1:] + vertices[:1]):
+            for a, b in zip(vertices, vertices[1:] + vertices[:1], strict=True):
                 draw_polyline(canvas, _arc(a, b), colour, thickness)
             for v in vertices:
                 _dot(canvas, v, colour, radius)

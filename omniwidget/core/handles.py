@@ -27,7 +27,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal, Union
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -203,10 +203,10 @@ class CageHandle:
 
     def vertex_maps(self) -> list[Moebius]:
         """One Möbius map per vertex."""
-        return [Moebius.translation(v, t) for v, t in zip(self.vertices, self.finals)]
+        return [Moebius.translation(v, t) for v, t in zip(self.vertices, self.finals, strict=True)]
 
 
-Handle = Union[PointHandle, LineHandle, CageHandle]
+Handle = PointHandle | LineHandle | CageHandle
 
 
 @dataclass(frozen=True)
@@ -493,7 +493,13 @@ def _pair(p: Sequence[float]) -> list[float]:
 
 def _handle_to_dict(h: Handle) -> dict[str, Any]:
     if isinstance(h, PointHandle):
-        out: dict[str, Any] = {"kind": "point", "position": _pair(h.position), "target": _pair(h.final), "rotation": h.rotation, "scale": h.scale}
+        out: dict[str, Any] = {
+            "kind": "point",
+            "position": _pair(h.position),
+            "target": _pair(h.final),
+            "rotation": h.rotation,
+            "scale": h.scale,
+        }
     elif isinstance(h, LineHandle):
         out = {"kind": "line", "start": _pair(h.start), "end": _pair(h.end), "rectify": h.rectify}
         if h.targets is not None:

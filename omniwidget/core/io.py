@@ -132,7 +132,9 @@ def write_image(path: str | os.PathLike[str], image: NDArray) -> None:
     }
     allowed = depth_ok.get(image.dtype.type, ())
     if suffix not in allowed:
-        raise ImageError(f"{path}: cannot write a {image.dtype} image as {suffix or 'a file without suffix'} (use {', '.join(allowed + ('.npy',))})")
+        raise ImageError(
+            f"{path}: cannot write a {image.dtype} image as {suffix or 'a file without suffix'} (use {', '.join(allowed + ('.npy',))})"
+        )
     out = image
     if out.ndim == 3 and out.shape[2] == 3:
         out = cv2.cvtColor(out, cv2.COLOR_RGB2BGR)
