@@ -67,7 +67,7 @@ def _cmd_warp(args: argparse.Namespace) -> None:
     from .core.errors import ImageError
     from .core.handles import load_handles
     from .core.io import atomic_write_bytes, check_panorama, read_image, write_image
-    from .core.warp import warp
+    from .core.warping import warp
 
     if args.output.resolve() == args.input.resolve():
         raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
@@ -94,7 +94,7 @@ def _cmd_demo(args: argparse.Namespace) -> None:
     from .core.draw import draw_handles
     from .core.handles import Handles, save_handles
     from .core.io import write_image
-    from .core.warp import warp
+    from .core.warping import warp
     from .data import sample_image
 
     out = args.output_dir

@@ -4,7 +4,7 @@ import pytest
 from omniwidget.core import coords
 from omniwidget.core.moebius import Moebius
 from omniwidget.core.quality import conformal_distortion
-from omniwidget.core.warp import grid_inverse, inverse_lonlat
+from omniwidget.core.warping import grid_inverse, inverse_lonlat
 
 from .conftest import random_lonlat
 

@@ -6,7 +6,7 @@ from omniwidget.core.errors import BlendingUnavailableError, ImageError
 from omniwidget.core.handles import CageHandle, Handles, LineHandle, PointHandle
 from omniwidget.core.moebius import Moebius
 from omniwidget.core.quality import local_jacobians, straightness
-from omniwidget.core.warp import grid_inverse, inverse_lonlat, pad_panorama, warp, warp_moebius
+from omniwidget.core.warping import grid_inverse, inverse_lonlat, pad_panorama, warp, warp_moebius
 
 from .conftest import offset
 

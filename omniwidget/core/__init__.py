@@ -5,7 +5,7 @@ from .errors import BlendingUnavailableError, HandlesError, ImageError, Omniwidg
 from .handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
 from .io import read_image, write_image
 from .moebius import Moebius
-from .warp import WarpResult, warp, warp_moebius
+from .warping import WarpResult, warp, warp_moebius
 
 __all__ = [
     "BlendingUnavailableError",

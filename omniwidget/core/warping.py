@@ -39,34 +39,45 @@ BLOCK_ROWS = 128
 GridInverse = Callable[[NDArray[np.float64], NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]
 
 
-def grid_inverse(m: Moebius) -> GridInverse:
+def grid_inverse(m: Moebius, precision: Literal["double", "single"] = "double") -> GridInverse:
     """The grid evaluator of the Möbius map ``m`` (pass the *inverse* of the warp's map).
 
     Uses that grid rows share a latitude: the homogeneous coordinates of a row are an
     outer product, so the matrix acts on ``W + h`` numbers before the per-pixel work.
     The source latitude comes from ``atan2(|U|² - |V|², 2 |U V̄|)``, exact at the poles.
-    """
-    (a, b), (c, d) = m.matrix
 
-    def fn(lon: NDArray[np.float64], lat: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        e = np.exp(1j * lon)
-        cos_lat, sin_lat = np.cos(lat)[:, None], np.sin(lat)[:, None]
+    Parameters
+    ----------
+    m : Moebius
+    precision : {"double", "single"}
+        Arithmetic of the per-pixel work. ``"single"`` is about 1.7 times faster and places
+        samples within 1e-3 px at 2048 wide (0.03 px within a hundredth of a pixel of a pole),
+        far below OpenCV's 1/32 px interpolation step: the warp uses it. Measurements of the
+        map use ``"double"``.
+    """
+    real, cplx = {"double": (np.float64, np.complex128), "single": (np.float32, np.complex64)}[precision]
+    (a, b), (c, d) = m.matrix.astype(cplx)
+
+    def fn(lon: NDArray[np.float64], lat: NDArray[np.float64]) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
+        e = np.exp(1j * lon).astype(cplx)
+        ce = np.conj(e)
+        cos_lat, sin_lat = np.cos(lat).astype(real)[:, None], np.sin(lat).astype(real)[:, None]
         k = int(np.count_nonzero(sin_lat > 0))  # rows run north to south: the first k are northern
         if np.any(sin_lat[:k] <= 0) or np.any(sin_lat[k:] > 0):
             raise ValueError("grid rows must run from north to south")
-        big_u = np.empty((len(lat), len(lon)), np.complex128)
+        one = real(1.0)
+        big_u = np.empty((len(lat), len(lon)), cplx)
         big_v = np.empty_like(big_u)
         # northern rows: [u : v] = [1 + sin(lat) : cos(lat) conj(e)]
-        ce = np.conj(e)
-        big_u[:k] = cos_lat[:k] * (b * ce) + a * (1.0 + sin_lat[:k])
-        big_v[:k] = cos_lat[:k] * (d * ce) + c * (1.0 + sin_lat[:k])
+        big_u[:k] = cos_lat[:k] * (b * ce) + a * (one + sin_lat[:k])
+        big_v[:k] = cos_lat[:k] * (d * ce) + c * (one + sin_lat[:k])
         # southern rows: [u : v] = [cos(lat) e : 1 - sin(lat)]
-        big_u[k:] = cos_lat[k:] * (a * e) + b * (1.0 - sin_lat[k:])
-        big_v[k:] = cos_lat[k:] * (c * e) + d * (1.0 - sin_lat[k:])
+        big_u[k:] = cos_lat[k:] * (a * e) + b * (one - sin_lat[k:])
+        big_v[k:] = cos_lat[k:] * (c * e) + d * (one - sin_lat[k:])
         w = big_u * np.conj(big_v)
         uu = big_u.real**2 + big_u.imag**2
         uu -= big_v.real**2 + big_v.imag**2
-        return np.arctan2(w.imag, w.real), np.arctan2(uu, 2.0 * np.abs(w))
+        return np.arctan2(w.imag, w.real), np.arctan2(uu, 2 * np.abs(w))
 
     return fn
 
@@ -220,7 +231,7 @@ def warp_moebius(image: NDArray, moebius: Moebius, *, width: int | None = None, 
         raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
     if moebius.is_identity() and width == src_width:
         return WarpResult(image.copy(), moebius, src_width)
-    coordinates = _remap_coordinates(grid_inverse(moebius.inverse), int(width), src_width, PAD)
+    coordinates = _remap_coordinates(grid_inverse(moebius.inverse, "single"), int(width), src_width, PAD)
     return WarpResult(remap(pad_panorama(image), coordinates, order), moebius, src_width)
 
 
