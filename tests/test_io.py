@@ -1,0 +1,65 @@
+import numpy as np
+import pytest
+
+from omniwidget.core.errors import ImageError
+from omniwidget.core.io import atomic_write_bytes, read_image, write_image
+
+
+@pytest.mark.parametrize(
+    ("suffix", "dtype", "channels"),
+    [
+        (".png", np.uint8, 3),
+        (".png", np.uint8, 4),
+        (".png", np.uint16, 3),
+        (".png", np.uint16, None),
+        (".tif", np.float32, 3),
+        (".npy", np.float64, 4),
+        (".jpg", np.uint8, None),
+    ],
+)
+def test_images_round_trip_in_their_depth_and_channel_order(tmp_path, rng, suffix, dtype, channels):
+    shape = (16, 32) if channels is None else (16, 32, channels)
+    top = 255 if dtype == np.uint8 else 65535 if dtype == np.uint16 else 1.0
+    image = (rng.random(shape) * top).astype(dtype)
+    if suffix == ".jpg":
+        image[:] = 90  # lossy: check channels and depth, not exact values
+    path = tmp_path / f"im{suffix}"
+    write_image(path, image)
+    back = np.load(path) if suffix == ".npy" else read_image(path)
+    assert back.dtype == image.dtype and back.shape == image.shape
+    if suffix != ".jpg":
+        np.testing.assert_array_equal(back, image)  # RGB stays RGB (OpenCV's BGR never leaks out)
+    assert [p.name for p in tmp_path.iterdir()] == [path.name]
+
+
+def test_unwritable_combinations_are_refused_before_anything_is_written(tmp_path):
+    with pytest.raises(ImageError, match="cannot write a float32 image as .png"):
+        write_image(tmp_path / "x.png", np.zeros((4, 8), np.float32))
+    with pytest.raises(ImageError, match="does not exist"):
+        write_image(tmp_path / "no" / "x.png", np.zeros((4, 8), np.uint8))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_atomic_write_leaves_the_old_file_when_writing_fails(tmp_path, monkeypatch):
+    path = tmp_path / "out.bin"
+    path.write_bytes(b"old")
+
+    def failing_replace(src, dst):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("omniwidget.core.io.os.replace", failing_replace)
+    with pytest.raises(OSError, match="No space"):
+        atomic_write_bytes(path, b"new")
+    assert path.read_bytes() == b"old"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.bin"]  # the temporary file is gone
+
+
+def test_unreadable_files_name_the_problem(tmp_path):
+    (tmp_path / "empty.png").write_bytes(b"")
+    (tmp_path / "junk.jpg").write_bytes(b"\xff\xd8 not really a jpeg")
+    with pytest.raises(ImageError, match="empty.png: the file is empty"):
+        read_image(tmp_path / "empty.png")
+    with pytest.raises(ImageError, match="junk.jpg: not an image"):
+        read_image(tmp_path / "junk.jpg")
+    with pytest.raises(ImageError, match="missing.png: cannot read"):
+        read_image(tmp_path / "missing.png")
