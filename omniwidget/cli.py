@@ -62,11 +62,9 @@ def _check_output(path: Path, suffixes: Sequence[str], what: str) -> None:
 
 
 def _cmd_warp(args: argparse.Namespace) -> None:
-    import numpy as np
-
     from .core.errors import ImageError
     from .core.handles import load_handles
-    from .core.io import atomic_write_bytes, check_panorama, read_image, write_image
+    from .core.io import check_panorama, read_image, write_image
     from .core.warping import warp
 
     if args.output.resolve() == args.input.resolve():
@@ -80,11 +78,7 @@ def _cmd_warp(args: argparse.Namespace) -> None:
     image = check_panorama(read_image(args.input), str(args.input))
     result = warp(image, handles, width=args.width, order=args.order)
     if args.map is not None:
-        import io
-
-        buf = io.BytesIO()
-        np.save(buf, result.inverse_map())
-        atomic_write_bytes(args.map, buf.getvalue())
+        write_image(args.map, result.inverse_map())  # .npy: the float32 array as it is
     write_image(args.output, result.image)
 
 
