@@ -26,7 +26,7 @@ from .handles import Handles
 from .io import check_panorama
 from .moebius import Moebius
 
-__all__ = ["ORDERS", "WarpResult", "grid_inverse", "inverse_lonlat", "remap", "warp", "warp_moebius"]
+__all__ = ["ORDERS", "WarpResult", "check_warp_arguments", "grid_homogeneous", "grid_inverse", "inverse_lonlat", "remap", "warp", "warp_by_inverse", "warp_moebius"]
 
 Order = Literal["nearest", "bilinear", "bicubic"]
 ORDERS: tuple[Order, ...] = ("nearest", "bilinear", "bicubic")
@@ -34,17 +34,70 @@ ORDERS: tuple[Order, ...] = ("nearest", "bilinear", "bicubic")
 PAD = 3
 BLOCK_ROWS = 128
 
-#: ``fn(lon, lat) -> (src_lon, src_lat)``: radians; ``lon`` shape (W,), ``lat`` shape (h,),
-#: results shape (h, W). The inverse map of a warp, evaluated on a block of the output grid.
-GridInverse = Callable[[NDArray[np.float64], NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]
+#: ``fn(lon, lat, rows) -> (src_lon, src_lat)``: the inverse map of a warp on a block of the
+#: output grid. Radians; ``lon`` shape (W,), ``lat`` shape (h,) for the output rows ``rows``
+#: (a slice); results shape (h, W).
+GridInverse = Callable[[NDArray[np.float64], NDArray[np.float64], slice], tuple[NDArray[np.floating], NDArray[np.floating]]]
+
+
+_PRECISION = {"double": (np.float64, np.complex128), "single": (np.float32, np.complex64)}
+
+
+def grid_homogeneous(m: Moebius, lon: NDArray[np.float64], lat: NDArray[np.float64], precision: Literal["double", "single"] = "double") -> tuple[NDArray, NDArray]:
+    """Apply ``m`` to a block of grid directions, in homogeneous coordinates ``[U : V]``.
+
+    Uses that grid rows share a latitude: each row's homogeneous coordinates are an outer
+    product, so the matrix acts on ``W + h`` numbers before the per-pixel work. Each row
+    takes the well-conditioned homogeneous form of its hemisphere (see
+    :func:`coords.xyz_to_homogeneous`), so nothing is singular at the poles.
+
+    Parameters
+    ----------
+    m : Moebius
+    lon : ndarray of float64, shape (W,)
+        Column longitudes, radians.
+    lat : ndarray of float64, shape (h,)
+        Row latitudes, radians, from north to south.
+    precision : {"double", "single"}
+        Arithmetic of the per-pixel work: complex128 or complex64.
+
+    Returns
+    -------
+    U, V : ndarray of complex, shape (h, W)
+    """
+    real, cplx = _PRECISION[precision]
+    (a, b), (c, d) = m.matrix.astype(cplx)
+    e = np.exp(1j * lon).astype(cplx)
+    ce = np.conj(e)
+    cos_lat, sin_lat = np.cos(lat).astype(real)[:, None], np.sin(lat).astype(real)[:, None]
+    k = int(np.count_nonzero(sin_lat > 0))  # rows run north to south: the first k are northern
+    if np.any(sin_lat[:k] <= 0) or np.any(sin_lat[k:] > 0):
+        raise ValueError("grid rows must run from north to south")
+    one = real(1.0)
+    big_u = np.empty((len(lat), len(lon)), cplx)
+    big_v = np.empty_like(big_u)
+    # northern rows: [u : v] = [1 + sin(lat) : cos(lat) conj(e)]
+    big_u[:k] = cos_lat[:k] * (b * ce) + a * (one + sin_lat[:k])
+    big_v[:k] = cos_lat[:k] * (d * ce) + c * (one + sin_lat[:k])
+    # southern rows: [u : v] = [cos(lat) e : 1 - sin(lat)]
+    big_u[k:] = cos_lat[k:] * (a * e) + b * (one - sin_lat[k:])
+    big_v[k:] = cos_lat[k:] * (c * e) + d * (one - sin_lat[k:])
+    return big_u, big_v
+
+
+def homogeneous_to_lonlat(big_u: NDArray, big_v: NDArray) -> tuple[NDArray, NDArray]:
+    """Longitude and latitude (radians) of homogeneous ``[U : V]``.
+
+    ``lon = arg(U V̄)``, ``lat = atan2(|U|² - |V|², 2 |U V̄|)``: exact at the poles.
+    """
+    w = big_u * np.conj(big_v)
+    uu = big_u.real**2 + big_u.imag**2
+    uu -= big_v.real**2 + big_v.imag**2
+    return np.arctan2(w.imag, w.real), np.arctan2(uu, 2 * np.abs(w))
 
 
 def grid_inverse(m: Moebius, precision: Literal["double", "single"] = "double") -> GridInverse:
     """The grid evaluator of the Möbius map ``m`` (pass the *inverse* of the warp's map).
-
-    Uses that grid rows share a latitude: the homogeneous coordinates of a row are an
-    outer product, so the matrix acts on ``W + h`` numbers before the per-pixel work.
-    The source latitude comes from ``atan2(|U|² - |V|², 2 |U V̄|)``, exact at the poles.
 
     Parameters
     ----------
@@ -55,29 +108,9 @@ def grid_inverse(m: Moebius, precision: Literal["double", "single"] = "double") 
         far below OpenCV's 1/32 px interpolation step: the warp uses it. Measurements of the
         map use ``"double"``.
     """
-    real, cplx = {"double": (np.float64, np.complex128), "single": (np.float32, np.complex64)}[precision]
-    (a, b), (c, d) = m.matrix.astype(cplx)
 
-    def fn(lon: NDArray[np.float64], lat: NDArray[np.float64]) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
-        e = np.exp(1j * lon).astype(cplx)
-        ce = np.conj(e)
-        cos_lat, sin_lat = np.cos(lat).astype(real)[:, None], np.sin(lat).astype(real)[:, None]
-        k = int(np.count_nonzero(sin_lat > 0))  # rows run north to south: the first k are northern
-        if np.any(sin_lat[:k] <= 0) or np.any(sin_lat[k:] > 0):
-            raise ValueError("grid rows must run from north to south")
-        one = real(1.0)
-        big_u = np.empty((len(lat), len(lon)), cplx)
-        big_v = np.empty_like(big_u)
-        # northern rows: [u : v] = [1 + sin(lat) : cos(lat) conj(e)]
-        big_u[:k] = cos_lat[:k] * (b * ce) + a * (one + sin_lat[:k])
-        big_v[:k] = cos_lat[:k] * (d * ce) + c * (one + sin_lat[:k])
-        # southern rows: [u : v] = [cos(lat) e : 1 - sin(lat)]
-        big_u[k:] = cos_lat[k:] * (a * e) + b * (one - sin_lat[k:])
-        big_v[k:] = cos_lat[k:] * (c * e) + d * (one - sin_lat[k:])
-        w = big_u * np.conj(big_v)
-        uu = big_u.real**2 + big_u.imag**2
-        uu -= big_v.real**2 + big_v.imag**2
-        return np.arctan2(w.imag, w.real), np.arctan2(uu, 2 * np.abs(w))
+    def fn(lon: NDArray[np.float64], lat: NDArray[np.float64], rows: slice | None = None) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
+        return homogeneous_to_lonlat(*grid_homogeneous(m, lon, lat, precision))
 
     return fn
 
@@ -115,7 +148,7 @@ def inverse_lonlat(fn: GridInverse, width: int) -> NDArray[np.float64]:
     out = np.empty((width // 2, width, 2))
 
     def work(rows: slice) -> None:
-        src_lon, src_lat = fn(lon, lat[rows])
+        src_lon, src_lat = fn(lon, lat[rows], rows)
         out[rows, :, 0] = np.degrees(src_lon)
         out[rows, :, 1] = np.degrees(src_lat)
 
@@ -132,7 +165,7 @@ def _remap_coordinates(fn: GridInverse, width: int, src_width: int, offset: floa
     y0 = src_width / 4 - 0.5 + offset  # lat = 0 sits at y = H/2 - 0.5
 
     def work(rows: slice) -> None:
-        src_lon, src_lat = fn(lon, lat[rows])
+        src_lon, src_lat = fn(lon, lat[rows], rows)
         out[rows, :, 0] = src_lon * kx + x0
         out[rows, :, 1] = y0 - src_lat * kx
 
@@ -222,17 +255,27 @@ def warp_moebius(image: NDArray, moebius: Moebius, *, width: int | None = None, 
     -------
     WarpResult
     """
+    width = check_warp_arguments(image, width, order)
+    if moebius.is_identity() and width == image.shape[1]:
+        return WarpResult(image.copy(), moebius, image.shape[1])
+    return WarpResult(warp_by_inverse(image, grid_inverse(moebius.inverse, "single"), width, order), moebius, image.shape[1])
+
+
+def check_warp_arguments(image: NDArray, width: int | None, order: str) -> int:
+    """Validate a warp's image, output width and order; returns the output width."""
     check_panorama(image)
-    src_width = image.shape[1]
-    width = src_width if width is None else width
+    width = image.shape[1] if width is None else width
     if isinstance(width, bool) or not isinstance(width, (int, np.integer)) or width < 2 or width % 2:
         raise ValueError(f"width must be an even whole number of at least 2, got {width!r}")
     if order not in ORDERS:
         raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
-    if moebius.is_identity() and width == src_width:
-        return WarpResult(image.copy(), moebius, src_width)
-    coordinates = _remap_coordinates(grid_inverse(moebius.inverse, "single"), int(width), src_width, PAD)
-    return WarpResult(remap(pad_panorama(image), coordinates, order), moebius, src_width)
+    return int(width)
+
+
+def warp_by_inverse(image: NDArray, inverse: GridInverse, width: int, order: Order = "bilinear") -> NDArray:
+    """Resample ``image`` at the directions an inverse map gives for a ``width`` wide output grid."""
+    coordinates = _remap_coordinates(inverse, width, image.shape[1], PAD)
+    return remap(pad_panorama(image), coordinates, order)
 
 
 def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: Order = "bilinear") -> WarpResult:
