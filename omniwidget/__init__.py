@@ -15,7 +15,7 @@ Examples
 
 from ._version import __version__
 from .core import (
-    BlendingUnavailableError,
+    BlendWarning,
     CageHandle,
     Handles,
     HandlesError,
@@ -25,6 +25,7 @@ from .core import (
     OmniwidgetError,
     Options,
     PointHandle,
+    Result,
     WarpResult,
     load_handles,
     read_image,
@@ -36,7 +37,7 @@ from .core import (
 from .data import sample_image, sample_path
 
 __all__ = [
-    "BlendingUnavailableError",
+    "BlendWarning",
     "CageHandle",
     "Handles",
     "HandlesError",
@@ -46,6 +47,7 @@ __all__ = [
     "OmniwidgetError",
     "Options",
     "PointHandle",
+    "Result",
     "WarpResult",
     "__version__",
     "load_handles",

@@ -16,11 +16,16 @@ from ._version import __version__
 
 EXIT_BAD_INPUT = 2
 
-#: The demo's handle on the bundled panorama: the bent top edge of the window wall.
+#: The demo's handles on the bundled panorama: the bent top edges of the window wall and the
+#: television, rectified; a cage that holds the armchair still.
 DEMO_HANDLES = {
     "format": "omniwidget.handles",
     "version": 1,
-    "handles": [{"kind": "line", "id": "window top", "start": [-4.0, 37.5], "end": [68.0, 36.5], "rectify": True}],
+    "handles": [
+        {"kind": "line", "id": "window top", "start": [-4.0, 37.5], "end": [68.0, 36.5]},
+        {"kind": "line", "id": "television top", "start": [-83.0, 12.0], "end": [-45.5, 12.0]},
+        {"kind": "cage", "id": "armchair", "vertices": [[-28.0, -5.0], [-2.0, -5.0], [-2.0, -50.0], [-28.0, -50.0]]},
+    ],
     "options": {"rectify": "all"},
 }
 
@@ -44,7 +49,7 @@ def _parser() -> argparse.ArgumentParser:
     warp.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
 
     demo = sub.add_parser(
-        "demo", help="before/after of the bundled panorama", description="Rectify a line of the bundled panorama and write a before/after."
+        "demo", help="before/after of the bundled panorama", description="Rectify lines of the bundled panorama and write a before/after."
     )
     demo.add_argument(
         "-o", "--output-dir", type=Path, default=Path("omniwidget-demo"), help="folder for the pictures (default: ./omniwidget-demo)"
@@ -65,7 +70,7 @@ def _cmd_warp(args: argparse.Namespace) -> None:
     from .core.errors import ImageError
     from .core.handles import load_handles
     from .core.io import check_panorama, read_image, write_image
-    from .core.warping import warp
+    from .core.pipeline import warp
 
     if args.output.resolve() == args.input.resolve():
         raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
@@ -88,7 +93,7 @@ def _cmd_demo(args: argparse.Namespace) -> None:
     from .core.draw import draw_handles
     from .core.handles import Handles, save_handles
     from .core.io import write_image
-    from .core.warping import warp
+    from .core.pipeline import warp
     from .data import sample_image
 
     out = args.output_dir

@@ -101,7 +101,6 @@ def test_bad_inputs_give_one_line_and_exit_2(files, capsys):
             f"{d}/o.png",
         ],
         "nope.json: cannot read the handles file": ["warp", f"{d}/in.png", "-H", f"{d}/nope.json", "-o", f"{d}/o.png"],
-        "2 handles define 2 different Möbius maps": ["warp", f"{d}/in.png", "-H", f"{d}/two.json", "-o", f"{d}/o.png"],
         "would overwrite the input": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/in.png"],
         "does not exist": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/no/such/dir/o.png"],
         "must end in": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/o.xyz"],
@@ -118,6 +117,13 @@ def test_bad_inputs_give_one_line_and_exit_2(files, capsys):
             assert message in err and err.count("\n") == 1
             continue
         assert message in _run_bad(files, capsys, argv), message
+
+
+def test_several_handles_are_blended(files, capsys):
+    doc = {"handles": [POINT["handles"][0], {"kind": "line", "start": [60, 30], "end": [100, 35]}, {"kind": "cage", "vertices": [[-60, -10], [-30, -10], [-45, 20]]}]}
+    (files / "three.json").write_text(json.dumps(doc))
+    assert main(["warp", str(files / "in.png"), "-H", str(files / "three.json"), "-o", str(files / "three.png")]) == 0
+    assert read_image(files / "three.png").shape == (128, 256, 3)
 
 
 def test_the_command_runs_as_a_program(files):

@@ -2,11 +2,12 @@ import numpy as np
 import pytest
 
 from omniwidget.core import coords
-from omniwidget.core.errors import BlendingUnavailableError, ImageError
+from omniwidget.core.errors import ImageError
 from omniwidget.core.handles import CageHandle, Handles, LineHandle, PointHandle
 from omniwidget.core.moebius import Moebius
 from omniwidget.core.quality import local_jacobians, straightness
-from omniwidget.core.warping import grid_inverse, inverse_lonlat, pad_panorama, warp, warp_moebius
+from omniwidget.core.pipeline import warp
+from omniwidget.core.warping import grid_inverse, inverse_lonlat, pad_panorama, warp_moebius
 
 from .conftest import offset
 
@@ -214,13 +215,11 @@ def test_bad_images_are_refused():
         warp(np.zeros((10, 20, 5), np.uint8), doc)
 
 
-def test_several_different_handles_need_the_blend():
+def test_identical_maps_are_applied_exactly_without_a_mesh():
     image = np.zeros((16, 32), np.uint8)
-    doc = Handles([PointHandle((0.0, 0.0), (5.0, 0.0)), LineHandle((20.0, 10.0), (40.0, 12.0))])
-    with pytest.raises(BlendingUnavailableError, match="2 handles define 2 different Möbius maps"):
-        warp(image, doc)
     same = Handles([PointHandle((0.0, 0.0), (5.0, 0.0)), PointHandle((0.0, 0.0), (5.0, 0.0))])
-    assert warp(image, same).moebius.isclose(same.handles[0].moebius())
+    result = warp(image, same)
+    assert result.moebius.isclose(same.handles[0].moebius()) and result.weights is None
 
 
 def test_inverse_map_of_the_result():

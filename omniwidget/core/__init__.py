@@ -1,14 +1,15 @@
 """The numerical core: numpy, scipy and OpenCV only; never imports a widget or plotting package."""
 
 from .coords import lonlat_to_px, lonlat_to_xyz, px_to_lonlat, xyz_to_lonlat
-from .errors import BlendingUnavailableError, HandlesError, ImageError, OmniwidgetError
+from .errors import HandlesError, ImageError, OmniwidgetError
 from .handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
 from .io import read_image, write_image
 from .moebius import Moebius
-from .warping import WarpResult, warp, warp_moebius
+from .pipeline import BlendWarning, Result, warp
+from .warping import WarpResult, warp_moebius
 
 __all__ = [
-    "BlendingUnavailableError",
+    "BlendWarning",
     "CageHandle",
     "Handles",
     "HandlesError",
@@ -18,6 +19,7 @@ __all__ = [
     "OmniwidgetError",
     "Options",
     "PointHandle",
+    "Result",
     "WarpResult",
     "load_handles",
     "lonlat_to_px",

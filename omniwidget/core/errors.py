@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["OmniwidgetError", "HandlesError", "ImageError", "BlendingUnavailableError"]
+__all__ = ["OmniwidgetError", "HandlesError", "ImageError"]
 
 
 class OmniwidgetError(ValueError):
@@ -20,7 +20,3 @@ class HandlesError(OmniwidgetError):
 
 class ImageError(OmniwidgetError):
     """An image cannot be read, written or used as an equirectangular panorama."""
-
-
-class BlendingUnavailableError(OmniwidgetError):
-    """Several handles with different maps need the bounded biharmonic blend, which is not in this version."""

@@ -21,12 +21,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import coords
-from .errors import BlendingUnavailableError, ImageError
-from .handles import Handles
+from .errors import ImageError
 from .io import check_panorama
 from .moebius import Moebius
 
-__all__ = ["ORDERS", "WarpResult", "check_warp_arguments", "grid_homogeneous", "grid_inverse", "inverse_lonlat", "remap", "warp", "warp_by_inverse", "warp_moebius"]
+__all__ = ["ORDERS", "WarpResult", "check_warp_arguments", "grid_homogeneous", "grid_inverse", "inverse_lonlat", "remap", "warp_by_inverse", "warp_moebius"]
 
 Order = Literal["nearest", "bilinear", "bicubic"]
 ORDERS: tuple[Order, ...] = ("nearest", "bilinear", "bicubic")
@@ -276,35 +275,3 @@ def warp_by_inverse(image: NDArray, inverse: GridInverse, width: int, order: Ord
     """Resample ``image`` at the directions an inverse map gives for a ``width`` wide output grid."""
     coordinates = _remap_coordinates(inverse, width, image.shape[1], PAD)
     return remap(pad_panorama(image), coordinates, order)
-
-
-def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: Order = "bilinear") -> WarpResult:
-    """Warp a panorama by its handles.
-
-    An empty document gives back the input unchanged (a copy, bit for bit). When all the
-    handles' maps are one map (one point or line handle, or cages that stay), the result
-    is exactly that map. Several different maps need the bounded biharmonic blend.
-
-    Parameters
-    ----------
-    image : ndarray, shape (H, W[, C])
-        See :func:`warp_moebius`.
-    handles : Handles
-    width : int, optional
-    order : {"nearest", "bilinear", "bicubic"}
-
-    Raises
-    ------
-    BlendingUnavailableError
-        When the handles define different maps, until the blend lands.
-    """
-    if not isinstance(handles, Handles):
-        raise TypeError(f"handles must be a Handles document (see Handles.from_dict), got {type(handles).__name__}")
-    maps = handles.maps()
-    moebius = maps[0] if maps else Moebius.identity()
-    if any(not m.isclose(moebius) for m in maps[1:]):
-        raise BlendingUnavailableError(
-            f"{len(handles)} handles define {len(maps)} different Möbius maps; blending them "
-            "(bounded biharmonic weights) is not in this version yet: warp one handle at a time"
-        )
-    return warp_moebius(image, moebius, width=width, order=order)

@@ -1,0 +1,168 @@
+"""Handles to output image, keeping every stage for inspection and teaching.
+
+Stages (Sec. 3): the controls and their boundary conditions (:mod:`.constraints`), the
+adaptive mesh at the handles' final positions (:mod:`.mesh`), bounded biharmonic weights
+on it (:mod:`.bbw`), the location of every output pixel on the mesh (:mod:`.locate`), the
+blend of eq. (2) (:mod:`.blend`) and the resampling (:mod:`.warping`).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .constraints import SAMPLES, Constraints, Control, build_constraints
+from .handles import Handles
+from .moebius import Moebius
+from .warping import GridInverse, Order, check_warp_arguments, grid_inverse, inverse_lonlat, warp_by_inverse
+
+__all__ = ["BlendWarning", "Result", "warp"]
+
+
+class BlendWarning(UserWarning):
+    """Handles whose constraints conflict (the paper's Fig. 15); the result is still an image."""
+
+
+@dataclass(frozen=True, eq=False)
+class Result:
+    """Everything a warp computed.
+
+    Attributes
+    ----------
+    image : ndarray, shape (H, W[, C])
+        The output panorama, in the input's dtype.
+    handles : Handles
+        The document warped.
+    constraints : Constraints
+        The controls (one Möbius map each) and the prescribed weights.
+    vertices, faces : ndarray or None
+        The adaptive mesh, (n, 3) float64 and (m, 3) int64; None when one map does it all.
+    constrained : ndarray of int64 or None
+        Mesh vertices carrying boundary conditions, (b,).
+    weights : ndarray of float64 or None
+        Normalised bounded biharmonic weights per mesh vertex and control, (n, k).
+    timings : dict of str to float
+        Seconds per stage.
+    warnings : tuple of str
+        Conflicts found on the way (also issued as :class:`BlendWarning`).
+    source_width : int
+        Width of the input image.
+    """
+
+    image: NDArray
+    handles: Handles
+    constraints: Constraints
+    vertices: NDArray[np.float64] | None
+    faces: NDArray[np.int64] | None
+    constrained: NDArray[np.int64] | None
+    weights: NDArray[np.float64] | None
+    inverse: GridInverse = field(repr=False)
+    timings: dict[str, float]
+    warnings: tuple[str, ...]
+    source_width: int
+
+    @property
+    def controls(self) -> tuple[Control, ...]:
+        """The controls, in the order of the weights' columns."""
+        return self.constraints.controls
+
+    @property
+    def moebius(self) -> Moebius | None:
+        """The single map of the warp when all controls share one map (or there are none), else None."""
+        maps = [c.moebius for c in self.controls]
+        if not maps:
+            return Moebius.identity()
+        return maps[0] if all(m.isclose(maps[0]) for m in maps[1:]) else None
+
+    def inverse_map(self, precision: str = "double") -> NDArray[np.float32]:
+        """For each output pixel centre, the input ``[lon, lat]`` (degrees) it shows, float32 (H, W, 2)."""
+        return inverse_lonlat(self.inverse, self.image.shape[1]).astype(np.float32)
+
+
+def _merge_duplicates(b: NDArray[np.int64], values: NDArray[np.float64], controls: tuple[Control, ...]) -> tuple[NDArray, NDArray, list[str]]:
+    """One row per constrained vertex; conflicting prescriptions are averaged and reported."""
+    order = np.argsort(b, kind="stable")
+    b, values = b[order], values[order]
+    unique, start = np.unique(b, return_index=True)
+    merged = np.add.reduceat(values, start, axis=0) / np.diff(np.append(start, len(b)))[:, None]
+    problems = []
+    for u, s, e in zip(unique, start, np.append(start[1:], len(b)), strict=True):
+        rows = values[s:e]
+        if e - s > 1 and np.abs(rows - rows[0]).max() > 1e-9:
+            names = sorted({controls[c].label for c in np.flatnonzero(np.abs(rows).sum(axis=0) > 0)})
+            problems.append(f"constraints of {', '.join(names)} fall on the same point (mesh vertex {u}); their weights were averaged")
+    return unique, merged, problems
+
+
+def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: Order = "bilinear", samples: int = SAMPLES) -> Result:
+    """Warp a panorama by any number of handles (the paper's method).
+
+    One map for everything (no handles, one point or line, handles that do not move) is
+    applied exactly, without a mesh; otherwise the controls' maps are blended by bounded
+    biharmonic weights.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W[, C])
+        Equirectangular, ``W = 2 H``; uint8, uint16, float32 or float64; 1 to 4 channels.
+    handles : Handles
+    width : int, optional
+        Output width (even); default: the input's.
+    order : {"nearest", "bilinear", "bicubic"}
+    samples : int
+        Points per line and cage edge in the boundary conditions (the paper's 50).
+
+    Returns
+    -------
+    Result
+    """
+    if not isinstance(handles, Handles):
+        raise TypeError(f"handles must be a Handles document (see Handles.from_dict), got {type(handles).__name__}")
+    width = check_warp_arguments(image, width, order)
+    timings: dict[str, float] = {}
+    clock = time.perf_counter()
+
+    def lap(name: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        timings[name] = now - clock
+        clock = now
+
+    constraints = build_constraints(handles, samples=samples)
+    lap("constraints")
+    maps = [c.moebius for c in constraints.controls]
+    single = maps[0] if maps else Moebius.identity()
+    if all(m.isclose(single) for m in maps[1:]):
+        if single.is_identity() and width == image.shape[1]:
+            out = image.copy()
+            inverse = grid_inverse(single)
+        else:
+            inverse = grid_inverse(single.inverse, "single")
+            out = warp_by_inverse(image, inverse, width, order)
+            inverse = grid_inverse(single.inverse)
+        lap("resampling")
+        return Result(out, handles, constraints, None, None, None, None, inverse, timings, (), image.shape[1])
+
+    from .bbw import bbw, normalize_rows
+    from .blend import blended_inverse
+    from .locate import locate_grid
+    from .mesh import adaptive_mesh
+
+    mesh = adaptive_mesh(constraints.points)
+    lap("mesh")
+    b, bc, problems = _merge_duplicates(mesh.sample_index, constraints.values, constraints.controls)
+    weights = normalize_rows(bbw(mesh.vertices, mesh.faces, b, bc))
+    lap("weights")
+    face, bary = locate_grid(mesh.vertices, mesh.faces, width)
+    lap("locate")
+    inverses = [m.inverse for m in maps]
+    out = warp_by_inverse(image, blended_inverse(inverses, mesh.faces, weights, face, bary), width, order)
+    lap("blend and resampling")
+    for p in problems:
+        warnings.warn(p, BlendWarning, stacklevel=2)
+    inverse = blended_inverse(inverses, mesh.faces, weights, face, bary, precision="double")
+    return Result(out, handles, constraints, mesh.vertices, mesh.faces, b, weights, inverse, timings, tuple(problems), image.shape[1])
