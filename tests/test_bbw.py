@@ -38,7 +38,7 @@ def icosphere(level: int) -> tuple[np.ndarray, np.ndarray]:
     v = np.array(
         [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]],
         dtype=np.float64,
-    )
+    )  # fmt: skip
     v /= np.linalg.norm(v, axis=1, keepdims=True)
     f = orient_outward(v, ConvexHull(v).simplices.astype(np.int64))
     for _ in range(level):
@@ -102,11 +102,11 @@ def cage_layout(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     corners = [nearest_vertex(v, 30 * math.cos(a), 20 + 25 * math.sin(a)) for a in np.linspace(0, 2 * math.pi, 6)[:-1]]
     k = len(corners) + 1
     values: dict[int, np.ndarray] = {}
-    for j, (p, q) in enumerate(zip(corners, corners[1:] + corners[:1])):
+    for j, (p, q) in enumerate(zip(corners, corners[1:] + corners[:1], strict=True)):
         path = shortest_path(v, f, p, q)
         s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(v[path], axis=0), axis=1))])
         s /= s[-1]
-        for vertex, t in zip(path, s):
+        for vertex, t in zip(path, s, strict=True):
             row = np.zeros(k)
             row[j] = 1.0 - t
             row[(j + 1) % len(corners)] = t
@@ -315,6 +315,22 @@ def test_warns_when_max_iter_is_too_small():
     np.testing.assert_array_equal(w[b], bc)
 
 
+def test_bordered_solver_matches_fresh_factorizations(rng):
+    # the factorization reuse behind the active-set steps: drop and add vertices, compare with direct solves
+    v, f = icosphere(3)
+    prob = bbw_module._problem(v, f, np.array([0, 1, 2]), np.eye(3))
+    solver = bbw_module._BorderedSolver(prob.q, max_border=40, q_norm=prob.norm)
+    inactive = rng.random(prob.q.shape[0]) < 0.7
+    for _ in range(8):
+        c = rng.normal(size=inactive.size)
+        y = solver.solve(inactive, c)
+        ref = spla.spsolve(prob.q[inactive][:, inactive].tocsc(), c[inactive])
+        assert np.abs(y - ref).max() <= 1e-9 * np.abs(ref).max()
+        flip = rng.choice(inactive.size, size=int(rng.integers(1, 15)), replace=False)
+        inactive[flip] = ~inactive[flip]
+    assert solver.factorizations < 8  # most solves bordered the first factorization
+
+
 # --- input checks ------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def small():
@@ -367,7 +383,9 @@ def test_bad_meshes(small):
     bbw(*two, np.array([0, len(v)]), np.ones((2, 1)))  # one handle vertex per component is enough
 
 
-@pytest.mark.parametrize(("option", "value"), [("tol", 0.0), ("tol", 0.1), ("tol", "x"), ("max_iter", 0), ("max_iter", 2.5), ("workers", 0)])
+@pytest.mark.parametrize(
+    ("option", "value"), [("tol", 0.0), ("tol", 0.1), ("tol", "x"), ("max_iter", 0), ("max_iter", 2.5), ("workers", 0)]
+)
 def test_bad_options(small, option, value):
     v, f = small
     with pytest.raises(ValueError, match=option):
@@ -418,6 +436,52 @@ def test_igl_bbw_coerces_dtypes_and_layout():
     assert w.dtype == np.float64 and w.shape == (len(v), 4)
     assert np.abs(w - ref).max() < 1e-5  # float32 positions
     assert igl_version()[0].isdigit()
+
+
+class _FakeIgl26:
+    """libigl 2.6's shape of the bindings: a plain ``bbw`` function of float64/int64 arrays."""
+
+    def __init__(self):
+        self.calls = []
+
+    def bbw(self, v, f, b, bc, **kwargs):
+        self.calls.append((v.dtype, f.dtype, b.dtype, bc.dtype, v.flags.c_contiguous, kwargs))
+        return np.zeros((v.shape[0], bc.shape[1]))
+
+
+class _FakeIgl25:
+    """libigl 2.5's shape: ``igl.BBW(verbosity, max_iter).solve(V, F, b, bc)`` with 32-bit integers."""
+
+    def __init__(self):
+        self.calls = []
+        fake = self
+
+        class BBW:
+            def __init__(self, verbosity, max_iter):
+                fake.calls.append(("init", verbosity, max_iter))
+
+            def solve(self, v, f, b, bc):
+                fake.calls.append((v.dtype, f.dtype, b.dtype, bc.dtype))
+                return np.zeros((v.shape[0], bc.shape[1]))
+
+        self.BBW = BBW
+
+
+@pytest.mark.parametrize("fake", [_FakeIgl26, _FakeIgl25])
+def test_igl_bbw_speaks_both_binding_apis(monkeypatch, fake):
+    from omniwidget.core import _igl
+
+    module = fake()
+    monkeypatch.setitem(sys.modules, "igl", module)
+    v, f = icosphere(1)
+    w = _igl.igl_bbw(np.asfortranarray(v), f.astype(np.int32), [0, 3], [[1.0, 0.0], [0.0, 1.0]], max_iter=7)
+    assert w.shape == (len(v), 2) and w.dtype == np.float64
+    if fake is _FakeIgl26:
+        ((vd, fd, bd, cd, contiguous, kwargs),) = module.calls
+        assert (vd, fd, bd, cd, contiguous) == (np.float64, np.int64, np.int64, np.float64, True)
+        assert kwargs == {"partition_unity": False, "max_iter": 7}
+    else:
+        assert module.calls == [("init", 0, 7), (np.float64, np.int32, np.int32, np.float64)]
 
 
 def test_igl_missing_says_how_to_install(monkeypatch):

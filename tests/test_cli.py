@@ -120,7 +120,13 @@ def test_bad_inputs_give_one_line_and_exit_2(files, capsys):
 
 
 def test_several_handles_are_blended(files, capsys):
-    doc = {"handles": [POINT["handles"][0], {"kind": "line", "start": [60, 30], "end": [100, 35]}, {"kind": "cage", "vertices": [[-60, -10], [-30, -10], [-45, 20]]}]}
+    doc = {
+        "handles": [
+            POINT["handles"][0],
+            {"kind": "line", "start": [60, 30], "end": [100, 35]},
+            {"kind": "cage", "vertices": [[-60, -10], [-30, -10], [-45, 20]]},
+        ]
+    }
     (files / "three.json").write_text(json.dumps(doc))
     assert main(["warp", str(files / "in.png"), "-H", str(files / "three.json"), "-o", str(files / "three.png")]) == 0
     assert read_image(files / "three.png").shape == (128, 256, 3)

@@ -5,8 +5,8 @@ from omniwidget.core import coords
 from omniwidget.core.errors import ImageError
 from omniwidget.core.handles import CageHandle, Handles, LineHandle, PointHandle
 from omniwidget.core.moebius import Moebius
-from omniwidget.core.quality import local_jacobians, straightness
 from omniwidget.core.pipeline import warp
+from omniwidget.core.quality import local_jacobians, straightness
 from omniwidget.core.warping import grid_inverse, inverse_lonlat, pad_panorama, warp_moebius
 
 from .conftest import offset

@@ -185,7 +185,9 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     line_samples: list[tuple[int, NDArray[np.float64]]] = []
 
     pieces = [
-        _Piece(i, coords.lonlat_to_xyz(h.start), coords.lonlat_to_xyz(h.end), h) for i, h in enumerate(handles.handles) if isinstance(h, LineHandle)
+        _Piece(i, coords.lonlat_to_xyz(h.start), coords.lonlat_to_xyz(h.end), h)
+        for i, h in enumerate(handles.handles)
+        if isinstance(h, LineHandle)
     ]
     pieces = _split_crossings(pieces)
     joint_of = _joints(pieces, joint_distance)

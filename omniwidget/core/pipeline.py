@@ -83,7 +83,9 @@ class Result:
         return inverse_lonlat(self.inverse, self.image.shape[1]).astype(np.float32)
 
 
-def _merge_duplicates(b: NDArray[np.int64], values: NDArray[np.float64], controls: tuple[Control, ...]) -> tuple[NDArray, NDArray, list[str]]:
+def _merge_duplicates(
+    b: NDArray[np.int64], values: NDArray[np.float64], controls: tuple[Control, ...]
+) -> tuple[NDArray, NDArray, list[str]]:
     """One row per constrained vertex; conflicting prescriptions are averaged and reported."""
     order = np.argsort(b, kind="stable")
     b, values = b[order], values[order]

@@ -25,7 +25,17 @@ from .errors import ImageError
 from .io import check_panorama
 from .moebius import Moebius
 
-__all__ = ["ORDERS", "WarpResult", "check_warp_arguments", "grid_homogeneous", "grid_inverse", "inverse_lonlat", "remap", "warp_by_inverse", "warp_moebius"]
+__all__ = [
+    "ORDERS",
+    "WarpResult",
+    "check_warp_arguments",
+    "grid_homogeneous",
+    "grid_inverse",
+    "inverse_lonlat",
+    "remap",
+    "warp_by_inverse",
+    "warp_moebius",
+]
 
 Order = Literal["nearest", "bilinear", "bicubic"]
 ORDERS: tuple[Order, ...] = ("nearest", "bilinear", "bicubic")
@@ -42,7 +52,9 @@ GridInverse = Callable[[NDArray[np.float64], NDArray[np.float64], slice], tuple[
 _PRECISION = {"double": (np.float64, np.complex128), "single": (np.float32, np.complex64)}
 
 
-def grid_homogeneous(m: Moebius, lon: NDArray[np.float64], lat: NDArray[np.float64], precision: Literal["double", "single"] = "double") -> tuple[NDArray, NDArray]:
+def grid_homogeneous(
+    m: Moebius, lon: NDArray[np.float64], lat: NDArray[np.float64], precision: Literal["double", "single"] = "double"
+) -> tuple[NDArray, NDArray]:
     """Apply ``m`` to a block of grid directions, in homogeneous coordinates ``[U : V]``.
 
     Uses that grid rows share a latitude: each row's homogeneous coordinates are an outer
@@ -108,7 +120,9 @@ def grid_inverse(m: Moebius, precision: Literal["double", "single"] = "double") 
         map use ``"double"``.
     """
 
-    def fn(lon: NDArray[np.float64], lat: NDArray[np.float64], rows: slice | None = None) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
+    def fn(
+        lon: NDArray[np.float64], lat: NDArray[np.float64], rows: slice | None = None
+    ) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
         return homogeneous_to_lonlat(*grid_homogeneous(m, lon, lat, precision))
 
     return fn
