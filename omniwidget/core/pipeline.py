@@ -13,8 +13,9 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
+from . import coords
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .handles import Handles
 from .moebius import Moebius
@@ -77,6 +78,59 @@ class Result:
         if not maps:
             return Moebius.identity()
         return maps[0] if all(m.isclose(maps[0]) for m in maps[1:]) else None
+
+    def inverse_points(self, lonlat: ArrayLike) -> NDArray[np.float64]:
+        """The blended inverse map (eq. 2) at arbitrary output positions.
+
+        Parameters
+        ----------
+        lonlat : array_like, shape (..., 2)
+            Output ``[lon, lat]`` in degrees.
+
+        Returns
+        -------
+        ndarray of float64, shape (..., 2)
+            The input ``[lon, lat]`` each position shows.
+        """
+        xyz = coords.lonlat_to_xyz(lonlat)
+        if self.weights is None:
+            single = self.moebius if self.moebius is not None else Moebius.identity()
+            return coords.xyz_to_lonlat(single.inverse.apply_xyz(xyz))
+        from .locate import interpolate, locate_points
+
+        flat = xyz.reshape(-1, 3)
+        face, bary = locate_points(self.vertices, self.faces, flat)
+        w = interpolate(self.weights, self.faces, face, bary)
+        acc = sum(w[:, [j]] * c.moebius.inverse.apply_xyz(flat) for j, c in enumerate(self.controls))
+        return coords.xyz_to_lonlat(acc).reshape(xyz.shape[:-1] + (2,))
+
+    def forward_points(self, lonlat: ArrayLike, control: int, iterations: int = 8) -> NDArray[np.float64]:
+        """Where input positions land in the output, by inverting the blend near a control.
+
+        Starts from the control's own map and corrects by fixed-point steps
+        ``q <- M(M⁻¹(q) + (p - T⁻¹(q)))``, which converge where the blend is close to that
+        control's map (on and near its handle).
+
+        Parameters
+        ----------
+        lonlat : array_like, shape (n, 2)
+            Input ``[lon, lat]`` in degrees.
+        control : int
+            Index of the control whose map starts the search.
+        iterations : int
+
+        Returns
+        -------
+        ndarray of float64, shape (n, 2)
+        """
+        m = self.controls[control].moebius
+        p = coords.lonlat_to_xyz(lonlat)
+        q = m.apply_xyz(p)
+        for _ in range(iterations):
+            shown = coords.lonlat_to_xyz(self.inverse_points(coords.xyz_to_lonlat(q)))
+            step = m.inverse.apply_xyz(q) + (p - shown)
+            q = m.apply_xyz(step / np.linalg.norm(step, axis=-1, keepdims=True))
+        return coords.xyz_to_lonlat(q)
 
     def inverse_map(self, precision: str = "double") -> NDArray[np.float32]:
         """For each output pixel centre, the input ``[lon, lat]`` (degrees) it shows, float32 (H, W, 2)."""
