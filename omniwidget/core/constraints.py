@@ -191,8 +191,9 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     ]
     pieces = _split_crossings(pieces)
     joint_of = _joints(pieces, joint_distance)
-    per_handle = {i: sum(p.handle == i for p in pieces) for i in {p.handle for p in pieces}}
-    seen_part = dict.fromkeys(per_handle, 0)
+    pieces_of: dict[int, list[int]] = {}
+    for k, piece in enumerate(pieces):
+        pieces_of.setdefault(piece.handle, []).append(k)
     joint_rows: dict[int, dict[int, float]] = {}
     joint_points: dict[int, NDArray[np.float64]] = {}
 
@@ -216,11 +217,10 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
                         weights[first + w] = t[s]
                     rows.append((point, weights))
         else:
-            for k, piece in enumerate(pieces):
-                if piece.handle != i:
-                    continue
-                seen_part[i] += 1
-                part = f", part {seen_part[i]} of {per_handle[i]}" if per_handle[i] > 1 else ""
+            own = pieces_of[i]
+            for n, k in enumerate(own, start=1):
+                piece = pieces[k]
+                part = f", part {n} of {len(own)}" if len(own) > 1 else ""
                 start, end = coords.xyz_to_lonlat(piece.start), coords.xyz_to_lonlat(piece.end)
                 # explicit targets keep the handle as drawn; otherwise the piece's (split, snapped) ends
                 line = h if h.targets is not None else LineHandle(tuple(start), tuple(end), rectify=h.rectify)

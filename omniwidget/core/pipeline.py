@@ -19,7 +19,7 @@ from . import coords
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .handles import Handles
 from .moebius import Moebius
-from .warping import GridInverse, Order, check_warp_arguments, grid_inverse, inverse_lonlat, warp_by_inverse
+from .warping import GridInverse, Order, check_warp_arguments, grid_inverse, inverse_lonlat, warp_by_inverse, warp_moebius
 
 __all__ = ["BlendWarning", "Result", "warp"]
 
@@ -132,7 +132,7 @@ class Result:
             q = m.apply_xyz(step / np.linalg.norm(step, axis=-1, keepdims=True))
         return coords.xyz_to_lonlat(q)
 
-    def inverse_map(self, precision: str = "double") -> NDArray[np.float32]:
+    def inverse_map(self) -> NDArray[np.float32]:
         """For each output pixel centre, the input ``[lon, lat]`` (degrees) it shows, float32 (H, W, 2)."""
         return inverse_lonlat(self.inverse, self.image.shape[1]).astype(np.float32)
 
@@ -193,13 +193,8 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
     maps = [c.moebius for c in constraints.controls]
     single = maps[0] if maps else Moebius.identity()
     if all(m.isclose(single) for m in maps[1:]):
-        if single.is_identity() and width == image.shape[1]:
-            out = image.copy()
-            inverse = grid_inverse(single)
-        else:
-            inverse = grid_inverse(single.inverse, "single")
-            out = warp_by_inverse(image, inverse, width, order)
-            inverse = grid_inverse(single.inverse)
+        out = warp_moebius(image, single, width=width, order=order).image
+        inverse = grid_inverse(single.inverse)
         lap("resampling")
         return Result(out, handles, constraints, None, None, None, None, inverse, timings, (), image.shape[1])
 
