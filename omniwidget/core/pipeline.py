@@ -19,7 +19,17 @@ from . import coords
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .handles import Handles
 from .moebius import Moebius
-from .warping import GridInverse, Order, check_warp_arguments, grid_inverse, inverse_lonlat, warp_by_inverse, warp_moebius
+from .warping import (
+    GridInverse,
+    Order,
+    check_warp_arguments,
+    grid_inverse,
+    inverse_lonlat,
+    pad_panorama,
+    remap,
+    remap_coordinates,
+    warp_moebius,
+)
 
 __all__ = ["BlendWarning", "Result", "warp"]
 
@@ -44,6 +54,9 @@ class Result:
         The adaptive mesh, (n, 3) float64 and (m, 3) int64; None when one map does it all.
     constrained : ndarray of int64 or None
         Mesh vertices carrying boundary conditions, (b,).
+    prescribed : ndarray of float64 or None
+        The weights prescribed there, (b, k): the boundary conditions the solver was given
+        (conflicting prescriptions on one vertex already averaged).
     weights : ndarray of float64 or None
         Normalised bounded biharmonic weights per mesh vertex and control, (n, k).
     timings : dict of str to float
@@ -60,6 +73,7 @@ class Result:
     vertices: NDArray[np.float64] | None
     faces: NDArray[np.int64] | None
     constrained: NDArray[np.int64] | None
+    prescribed: NDArray[np.float64] | None
     weights: NDArray[np.float64] | None
     inverse: GridInverse = field(repr=False)
     timings: dict[str, float]
@@ -196,7 +210,7 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
         out = warp_moebius(image, single, width=width, order=order).image
         inverse = grid_inverse(single.inverse)
         lap("resampling")
-        return Result(out, handles, constraints, None, None, None, None, inverse, timings, (), image.shape[1])
+        return Result(out, handles, constraints, None, None, None, None, None, inverse, timings, (), image.shape[1])
 
     from .bbw import bbw, normalize_rows
     from .blend import blended_inverse
@@ -211,9 +225,11 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
     face, bary = locate_grid(mesh.vertices, mesh.faces, width)
     lap("locate")
     inverses = [m.inverse for m in maps]
-    out = warp_by_inverse(image, blended_inverse(inverses, mesh.faces, weights, face, bary), width, order)
-    lap("blend and resampling")
+    coordinates = remap_coordinates(blended_inverse(inverses, mesh.faces, weights, face, bary), width, image.shape[1])
+    lap("blend")
+    out = remap(pad_panorama(image), coordinates, order)
+    lap("resampling")
     for p in problems:
         warnings.warn(p, BlendWarning, stacklevel=2)
     inverse = blended_inverse(inverses, mesh.faces, weights, face, bary, precision="double")
-    return Result(out, handles, constraints, mesh.vertices, mesh.faces, b, weights, inverse, timings, tuple(problems), image.shape[1])
+    return Result(out, handles, constraints, mesh.vertices, mesh.faces, b, bc, weights, inverse, timings, tuple(problems), image.shape[1])

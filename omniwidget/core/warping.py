@@ -33,6 +33,7 @@ __all__ = [
     "grid_inverse",
     "inverse_lonlat",
     "remap",
+    "remap_coordinates",
     "warp_by_inverse",
     "warp_moebius",
 ]
@@ -169,7 +170,7 @@ def inverse_lonlat(fn: GridInverse, width: int) -> NDArray[np.float64]:
     return out
 
 
-def _remap_coordinates(fn: GridInverse, width: int, src_width: int, offset: float) -> NDArray[np.float32]:
+def remap_coordinates(fn: GridInverse, width: int, src_width: int, offset: float = PAD) -> NDArray[np.float32]:
     """Source pixel coordinates ``(x, y) + offset`` of every output pixel, float32 (H, W, 2)."""
     lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
     out = np.empty((width // 2, width, 2), dtype=np.float32)
@@ -287,5 +288,5 @@ def check_warp_arguments(image: NDArray, width: int | None, order: str) -> int:
 
 def warp_by_inverse(image: NDArray, inverse: GridInverse, width: int, order: Order = "bilinear") -> NDArray:
     """Resample ``image`` at the directions an inverse map gives for a ``width`` wide output grid."""
-    coordinates = _remap_coordinates(inverse, width, image.shape[1], PAD)
+    coordinates = remap_coordinates(inverse, width, image.shape[1], PAD)
     return remap(pad_panorama(image), coordinates, order)
