@@ -3,7 +3,6 @@ import pytest
 
 from omniwidget.core import coords
 from omniwidget.core.moebius import Moebius
-from omniwidget.core.quality import conformal_distortion
 from omniwidget.core.warping import grid_inverse, inverse_lonlat
 
 from .conftest import random_lonlat
@@ -101,19 +100,3 @@ def test_point_map_sends_centre_and_antipode_and_has_the_asked_derivative(positi
 def test_translation_looks_like_a_shift():
     m = Moebius.translation([0, 0], [40, 0])
     np.testing.assert_allclose(m([[0, 0], [10, 0], [0, 30]]), [[40, 0], [50, 0], [40, 30]], atol=1e-12)
-
-
-def test_one_moebius_warp_is_conformal():
-    m = Moebius.point_map([10, 20], [35, -5], 2.0, 25.0)
-    mean, per_pixel = conformal_distortion(inverse_lonlat(grid_inverse(m.inverse), 2048))
-    assert mean < 1e-4
-    assert np.all(np.isfinite(per_pixel))
-
-
-def test_conformal_distortion_detects_a_non_conformal_map():
-    lon, lat = coords.grid_lonlat(512)
-    grid = np.stack(np.meshgrid(lon, lat), axis=-1)
-    squeezed = grid.copy()
-    squeezed[..., 1] = np.degrees(np.arcsin(np.sin(np.radians(grid[..., 1])) * 0.8))  # not conformal
-    assert conformal_distortion(squeezed)[0] > 0.05
-    assert conformal_distortion(grid)[0] < 1e-6

@@ -11,15 +11,18 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import coords
 from .constraints import SAMPLES, Constraints, Control, build_constraints
-from .handles import Handles
+from .handles import CageHandle, Handles, LineHandle, PointHandle
 from .moebius import Moebius
+from .quality import FoldOver, fold_over
 from .warping import (
+    PAD,
     GridInverse,
     Order,
     check_warp_arguments,
@@ -31,7 +34,11 @@ from .warping import (
     warp_moebius,
 )
 
-__all__ = ["BlendWarning", "Result", "warp"]
+__all__ = ["FOLD_WARNING_AREA", "BlendWarning", "Result", "warp"]
+
+#: Fold-overs covering at least this share of the sphere are reported as a BlendWarning
+#: (1e-5 is about 20 pixels at 2048 x 1024); smaller ones only show in ``Result.folds``.
+FOLD_WARNING_AREA = 1e-5
 
 
 class BlendWarning(UserWarning):
@@ -65,6 +72,9 @@ class Result:
         Conflicts found on the way (also issued as :class:`BlendWarning`).
     source_width : int
         Width of the input image.
+    folds : FoldOver
+        Where the output is turned over (:func:`omniwidget.core.quality.fold_over`): a
+        mask and its share of the sphere; none for a single map.
     """
 
     image: NDArray
@@ -79,6 +89,7 @@ class Result:
     timings: dict[str, float]
     warnings: tuple[str, ...]
     source_width: int
+    folds: FoldOver
 
     @property
     def controls(self) -> tuple[Control, ...]:
@@ -146,9 +157,21 @@ class Result:
             q = m.apply_xyz(step / np.linalg.norm(step, axis=-1, keepdims=True))
         return coords.xyz_to_lonlat(q)
 
-    def inverse_map(self) -> NDArray[np.float32]:
-        """For each output pixel centre, the input ``[lon, lat]`` (degrees) it shows, float32 (H, W, 2)."""
-        return inverse_lonlat(self.inverse, self.image.shape[1]).astype(np.float32)
+    @cached_property
+    def _inverse_map(self) -> NDArray[np.float64]:
+        return inverse_lonlat(self.inverse, self.image.shape[1])
+
+    def inverse_map(self, dtype: type[np.floating] = np.float32) -> NDArray[np.floating]:
+        """For each output pixel centre, the input ``[lon, lat]`` (degrees) it shows, (H, W, 2).
+
+        Parameters
+        ----------
+        dtype : {numpy.float32, numpy.float64}
+            float64 for measurements (:mod:`omniwidget.core.quality`); computed once, kept.
+        """
+        if dtype not in (np.float32, np.float64):
+            raise ValueError(f"dtype must be numpy.float32 or numpy.float64, got {dtype!r}")
+        return self._inverse_map.astype(dtype, copy=dtype is not np.float64)
 
 
 def _merge_duplicates(
@@ -166,6 +189,18 @@ def _merge_duplicates(
             names = sorted({controls[c].label for c in np.flatnonzero(np.abs(rows).sum(axis=0) > 0)})
             problems.append(f"constraints of {', '.join(names)} fall on the same point (mesh vertex {u}); their weights were averaged")
     return unique, merged, problems
+
+
+def _fold_warning(handles: Handles, controls: tuple[Control, ...], pixel_weights: NDArray, area: float) -> str:
+    """Name the handles whose weights are strong where the output folds, (pixels, k) weights."""
+    strong = np.flatnonzero(pixel_weights.max(axis=0) >= 0.1)
+    involved = sorted({controls[j].handle for j in strong})
+    kinds = {PointHandle: "point", LineHandle: "line", CageHandle: "cage"}
+    names = [f"handles[{i}] ({kinds[type(handles.handles[i])]})" for i in involved]
+    return (
+        f"the warp folds over near {' and '.join(names)}: {100 * area:.3g}% of the sphere is shown turned over "
+        "(Result.folds.mask shows where); their targets conflict, move them apart"
+    )
 
 
 def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: Order = "bilinear", samples: int = SAMPLES) -> Result:
@@ -210,11 +245,12 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
         out = warp_moebius(image, single, width=width, order=order).image
         inverse = grid_inverse(single.inverse)
         lap("resampling")
-        return Result(out, handles, constraints, None, None, None, None, None, inverse, timings, (), image.shape[1])
+        no_folds = FoldOver(np.zeros(out.shape[:2], dtype=bool), 0.0)  # a Möbius map is one-to-one
+        return Result(out, handles, constraints, None, None, None, None, None, inverse, timings, (), image.shape[1], no_folds)
 
     from .bbw import bbw, normalize_rows
     from .blend import blended_inverse
-    from .locate import locate_grid
+    from .locate import interpolate, locate_grid
     from .mesh import adaptive_mesh
 
     mesh = adaptive_mesh(constraints.points)
@@ -229,7 +265,14 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
     lap("blend")
     out = remap(pad_panorama(image), coordinates, order)
     lap("resampling")
+    folds = fold_over(coords.px_to_lonlat(coordinates - PAD, image.shape[1]))
+    if folds.area >= FOLD_WARNING_AREA:
+        at = interpolate(weights, mesh.faces, face[folds.mask], bary[folds.mask])
+        problems.append(_fold_warning(handles, constraints.controls, at, folds.area))
+    lap("fold check")
+    inverse = blended_inverse(inverses, mesh.faces, weights, face, bary, precision="double")
     for p in problems:
         warnings.warn(p, BlendWarning, stacklevel=2)
-    inverse = blended_inverse(inverses, mesh.faces, weights, face, bary, precision="double")
-    return Result(out, handles, constraints, mesh.vertices, mesh.faces, b, bc, weights, inverse, timings, tuple(problems), image.shape[1])
+    return Result(
+        out, handles, constraints, mesh.vertices, mesh.faces, b, bc, weights, inverse, timings, tuple(problems), image.shape[1], folds
+    )

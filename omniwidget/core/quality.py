@@ -1,17 +1,45 @@
-"""Quality figures of a warp, measured from its maps: straightness of lines, conformal distortion."""
+"""Quality figures of a warp, measured from its inverse map.
+
+An *inverse map* is what every warp in omniwidget computes: for each output pixel centre
+(an equirectangular grid ``(H, 2H)``), the input ``[lon, lat]`` in degrees it shows
+(``Result.inverse_map()``). From it:
+
+- :func:`forward_points` inverts it: where input positions land in the output;
+- :func:`line_straightness`: how straight a marked line comes out, in pixels;
+- :func:`conformal_distortion`: how far the map is from conformal (angle-preserving);
+- :func:`fold_over`: where the map turns the image over (Jacobian determinant <= 0);
+- :func:`coverage`: the share of the input sphere the output shows;
+- :func:`cage_motion`: how far the inside of a fixed cage moved.
+
+Use float64 maps: float32 holds only about 1e-4 of a pixel step.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import coords
 
-__all__ = ["conformal_distortion", "local_jacobians", "straightness"]
+__all__ = [
+    "Distortion",
+    "FoldOver",
+    "cage_motion",
+    "conformal_distortion",
+    "coverage",
+    "fold_over",
+    "forward_points",
+    "line_straightness",
+    "local_jacobians",
+    "straightness",
+]
 
 
-def straightness(curve: ArrayLike, width: int) -> float:
-    """Largest distance, in pixels of an image ``width`` wide, of a curve from the chord of its ends.
+def straightness(curve: ArrayLike, width: int, fit: Literal["chord", "best"] = "chord") -> float:
+    """Largest distance, in pixels of an image ``width`` wide, of a curve from a straight line.
 
     Parameters
     ----------
@@ -21,18 +49,28 @@ def straightness(curve: ArrayLike, width: int) -> float:
         ±180° seam are measured as they appear when the image is scrolled.
     width : int
         Image width: 1 pixel is ``360 / width`` degrees.
+    fit : {"chord", "best"}
+        ``"chord"``: the segment joining the first and last sample (how far a line bends
+        away from where its ends are); ``"best"``: the straight line whose largest distance
+        is smallest (the minimum-zone fit of metrology: half the width of the narrowest
+        strip holding the curve), half the chord's figure for a circular arc.
 
     Returns
     -------
     float
-        ``max`` over the samples of their distance from the segment joining the first and
-        last sample, in pixels.
+        ``max`` over the samples of their distance from the chosen line, in pixels.
     """
     pts = np.array(curve, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
         raise ValueError(f"expected a curve of shape (n >= 2, 2), got {pts.shape}")
     pts[:, 0] = np.unwrap(pts[:, 0], period=360.0)
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("the curve has NaN or infinite positions (a point the output does not show?)")
     px = pts * (width / 360.0)
+    if fit == "best":
+        return _half_width(px)
+    if fit != "chord":
+        raise ValueError(f"fit must be 'chord' or 'best', got {fit!r}")
     a, b = px[0], px[-1]
     chord = b - a
     length = np.hypot(*chord)
@@ -41,6 +79,37 @@ def straightness(curve: ArrayLike, width: int) -> float:
     t = np.clip(((px - a) @ chord) / length**2, 0.0, 1.0)
     nearest = a + t[:, None] * chord
     return float(np.max(np.hypot(*(px - nearest).T)))
+
+
+def _half_width(points: NDArray[np.float64]) -> float:
+    """Half the width of the narrowest strip holding 2D points: the strip lies along a hull edge."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    centred = points - points.mean(axis=0)
+    try:
+        hull = centred[ConvexHull(centred).vertices]
+    except QhullError:  # all on one line (or one point)
+        return 0.0
+    edges = np.roll(hull, -1, axis=0) - hull
+    normals = np.stack([-edges[:, 1], edges[:, 0]], axis=1) / np.hypot(*edges.T)[:, None]
+    heights = hull @ normals.T  # (vertex, edge)
+    return float(np.min(heights.max(axis=0) - heights.min(axis=0)) / 2)
+
+
+def _check_map(inverse_map: ArrayLike, dtype: type[np.floating] = np.float64) -> NDArray[np.floating]:
+    m = np.asarray(inverse_map, dtype=dtype)
+    if m.ndim != 3 or m.shape[2] != 2 or m.shape[1] != 2 * m.shape[0] or m.shape[0] < 3:
+        raise ValueError(f"expected an inverse map of shape (H, 2H, 2) with H >= 3, got {m.shape}")
+    if not np.all(np.isfinite(m)):
+        bad = np.argwhere(~np.isfinite(m).all(axis=-1))[0]
+        raise ValueError(f"the inverse map has NaN or infinite entries (first at row {bad[0]}, column {bad[1]})")
+    return m
+
+
+def _area(height: int) -> NDArray[np.float64]:
+    """Area of each pixel row of an equirectangular grid, as a share of the sphere, (H,)."""
+    edges = np.radians(np.linspace(90.0, -90.0, height + 1))
+    return (np.sin(edges[:-1]) - np.sin(edges[1:])) / (2 * (2 * height))
 
 
 def local_jacobians(inverse_map: ArrayLike) -> NDArray[np.float64]:
@@ -58,10 +127,10 @@ def local_jacobians(inverse_map: ArrayLike) -> NDArray[np.float64]:
         For output rows ``1 .. H - 2`` and every column: ``J[..., i, k]`` is the change of
         the source position along source direction ``i`` (0 east, 1 north) per unit arc
         along output direction ``k`` (0 east, 1 north). Columns wrap at the seam.
+        Differences are taken between 3D unit vectors, so sources on or across a pole are
+        measured like any other.
     """
-    m = np.asarray(inverse_map, dtype=np.float64)
-    if m.ndim != 3 or m.shape[2] != 2 or m.shape[1] != 2 * m.shape[0] or m.shape[0] < 3:
-        raise ValueError(f"expected an inverse map of shape (H, 2H, 2) with H >= 3, got {m.shape}")
+    m = _check_map(inverse_map)
     height, width = m.shape[:2]
     _, lat = coords.grid_lonlat(width)
     step = np.radians(360.0 / width)
@@ -76,23 +145,312 @@ def local_jacobians(inverse_map: ArrayLike) -> NDArray[np.float64]:
     return jac
 
 
-def conformal_distortion(inverse_map: ArrayLike) -> tuple[float, NDArray[np.float64]]:
-    """Conformal distortion of a warp: the ratio of the map's singular values, minus 1.
+@dataclass(frozen=True, eq=False)
+class Distortion:
+    """Conformal distortion of a warp: ``sigma_max / sigma_min - 1`` of its Jacobian.
+
+    Attributes
+    ----------
+    mean : float
+        Area-weighted mean over the output rows within ``max_abs_lat``.
+    p99 : float
+        Area-weighted 99th percentile there.
+    per_pixel : ndarray of float64, shape (H, W)
+        Per output pixel; NaN on the first and last rows (no central difference there).
+    max_abs_lat : float
+        The latitude bound (degrees) of the summary figures.
+    """
+
+    mean: float
+    p99: float
+    per_pixel: NDArray[np.float64]
+    max_abs_lat: float
+
+
+def _weighted_quantile(values: NDArray, weights: NDArray, q: float) -> float:
+    order = np.argsort(values, axis=None)
+    cumulative = np.cumsum(weights.ravel()[order])
+    return float(values.ravel()[order][np.searchsorted(cumulative, q * cumulative[-1])])
+
+
+def conformal_distortion(inverse_map: ArrayLike, max_abs_lat: float = 80.0) -> Distortion:
+    """Conformal distortion of a warp, away from the poles.
+
+    Möbius maps are conformal (0 everywhere, up to differencing error); a blend of them is
+    not, and this shows where and how much.
 
     Parameters
     ----------
     inverse_map : array_like, shape (H, W, 2)
         See :func:`local_jacobians`.
+    max_abs_lat : float
+        Output rows within this latitude (degrees) count in the summary: at the poles the
+        equirectangular grid's east steps shrink to nothing and differences lose precision.
 
     Returns
     -------
-    mean : float
-        Mean over the sphere, each pixel weighted by its area (``cos lat``).
-    per_pixel : ndarray of float64, shape (H - 2, W)
-        ``sigma_max / sigma_min - 1`` at output rows ``1 .. H - 2``; 0 for a conformal map.
+    Distortion
     """
+    if not 0 < max_abs_lat <= 90:
+        raise ValueError(f"max_abs_lat must be in (0, 90] degrees, got {max_abs_lat!r}")
     sv = np.linalg.svd(local_jacobians(inverse_map), compute_uv=False)
     ratio = sv[..., 0] / sv[..., 1] - 1.0
-    _, lat = coords.grid_lonlat(ratio.shape[1])
-    area = np.broadcast_to(np.cos(np.radians(lat[1:-1]))[:, None], ratio.shape)
-    return float(np.sum(ratio * area) / np.sum(area)), ratio
+    height, width = ratio.shape[0] + 2, ratio.shape[1]
+    _, lat = coords.grid_lonlat(width)
+    rows = np.flatnonzero(np.abs(lat[1:-1]) <= max_abs_lat)
+    inside = ratio[rows]
+    area = np.broadcast_to(_area(height)[1:-1][rows, None], inside.shape)
+    per_pixel = np.full((height, width), np.nan)
+    per_pixel[1:-1] = ratio
+    mean = float(np.sum(inside * area) / np.sum(area))
+    return Distortion(mean, _weighted_quantile(inside, area, 0.99), per_pixel, float(max_abs_lat))
+
+
+@dataclass(frozen=True, eq=False)
+class FoldOver:
+    """Where a warp turns the image over.
+
+    Attributes
+    ----------
+    mask : ndarray of bool, shape (H, W)
+        Output pixels where the Jacobian determinant is <= 0 (mirrored or collapsed).
+    area : float
+        Their share of the sphere's area (0 for a map without fold-overs, 1 is everything).
+    """
+
+    mask: NDArray[np.bool_]
+    area: float
+
+
+def fold_over(inverse_map: ArrayLike, pole_margin: float = 1.0) -> FoldOver:
+    """Output pixels where the inverse map's Jacobian determinant is zero or negative.
+
+    The determinant's sign is taken from equirectangular differences (longitude steps
+    wrapped at the seam): both the output's and the input's projections preserve
+    orientation, so the sign is the sphere's, and this is cheap enough to run on every warp.
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, W, 2)
+        See :func:`local_jacobians`; float32 is precise enough here.
+    pole_margin : float
+        Pixels whose source lies within this many degrees of a pole are never marked:
+        longitude differences mean nothing there. The first and last rows (no central
+        difference) are never marked either.
+
+    Returns
+    -------
+    FoldOver
+    """
+    m = _check_map(inverse_map, np.float32 if np.asarray(inverse_map).dtype == np.float32 else np.float64)
+    lon, lat = m[..., 0], m[..., 1]
+
+    def wrapped(d: NDArray) -> NDArray:
+        return (d + 180) % 360 - 180
+
+    d_lon_east = wrapped(np.roll(lon, -1, axis=1) - np.roll(lon, 1, axis=1))[1:-1]
+    d_lat_east = (np.roll(lat, -1, axis=1) - np.roll(lat, 1, axis=1))[1:-1]
+    d_lon_north, d_lat_north = wrapped(lon[:-2] - lon[2:]), lat[:-2] - lat[2:]
+    mask = np.zeros(lon.shape, dtype=bool)
+    mask[1:-1] = (d_lon_east * d_lat_north - d_lon_north * d_lat_east <= 0) & (np.abs(lat[1:-1]) < 90 - pole_margin)
+    return FoldOver(mask, float(np.sum(mask * _area(len(mask))[:, None])))
+
+
+def _bilinear(src: NDArray[np.float64], x: NDArray, y: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """Value and x/y derivatives of the bilinear interpolation of ``src`` (H, W, 3) at pixel ``(x, y)``.
+
+    Columns wrap, rows are clamped to ``[0, H - 1]``.
+    """
+    height, width = src.shape[:2]
+    y = np.clip(y, 0.0, height - 1.0)
+    x0, y0 = np.floor(x), np.minimum(np.floor(y), height - 2)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    c0, c1, r0 = x0.astype(np.int64) % width, (x0.astype(np.int64) + 1) % width, y0.astype(np.int64)
+    s00, s01, s10, s11 = src[r0, c0], src[r0, c1], src[r0 + 1, c0], src[r0 + 1, c1]
+    value = (1 - fy) * ((1 - fx) * s00 + fx * s01) + fy * ((1 - fx) * s10 + fx * s11)
+    d_x = (1 - fy) * (s01 - s00) + fy * (s11 - s10)
+    d_y = (1 - fx) * (s10 - s00) + fx * (s11 - s01)
+    return value, d_x, d_y
+
+
+def forward_points(inverse_map: ArrayLike, lonlat: ArrayLike, *, iterations: int = 12, tolerance: float = 1e-3) -> NDArray[np.float64]:
+    """Where input positions land in the output: the inverse map solved for them.
+
+    Each position starts at the output pixel (of a grid every ``W / 512`` pixels) whose
+    source is nearest, then Newton steps on the map's bilinear interpolation (as 3D
+    vectors) converge to the output position that shows it.
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, W, 2)
+        See :func:`local_jacobians`.
+    lonlat : array_like, shape (n, 2)
+        Input ``[lon, lat]`` in degrees.
+    iterations : int
+        Newton steps.
+    tolerance : float
+        In output pixels: positions whose source is farther than this from where it should
+        be after the last step are NaN (the output does not show them, or the search
+        failed, for example in a fold-over).
+
+    Returns
+    -------
+    ndarray of float64, shape (n, 2)
+        Output ``[lon, lat]`` in degrees; NaN where not found. Positions within half a pixel
+        of the output's poles (beyond the first and last pixel rows) are not found.
+    """
+    from scipy.spatial import cKDTree
+
+    m = _check_map(inverse_map)
+    height, width = m.shape[:2]
+    targets = coords.lonlat_to_xyz(lonlat).reshape(-1, 3)
+    src = coords.lonlat_to_xyz(m)
+    stride = max(1, width // 512)
+    coarse = src[::stride, ::stride]
+    _, nearest = cKDTree(coarse.reshape(-1, 3)).query(targets)
+    row, col = np.divmod(nearest, coarse.shape[1])
+    x, y = (col * stride).astype(np.float64), (row * stride).astype(np.float64)
+    east, north = coords.local_frame(coords.xyz_to_lonlat(targets))
+    for _ in range(iterations):
+        value, d_x, d_y = _bilinear(src, x, y)
+        depth = np.sum(value * targets, axis=1)  # gnomonic coordinates about the target
+        e = np.stack([np.sum(value * east, axis=1), np.sum(value * north, axis=1)], axis=1) / depth[:, None]
+        jac = (
+            np.stack(
+                [
+                    np.stack([np.sum(d_x * east, axis=1), np.sum(d_y * east, axis=1)], axis=1),
+                    np.stack([np.sum(d_x * north, axis=1), np.sum(d_y * north, axis=1)], axis=1),
+                ],
+                axis=1,
+            )
+            / depth[:, None, None]
+        )
+        ok = np.abs(np.linalg.det(jac)) > 1e-300
+        step = np.zeros_like(e)
+        step[ok] = np.linalg.solve(jac[ok], -e[ok][..., None])[..., 0]
+        step = np.clip(step, -4.0 * stride, 4.0 * stride)
+        x, y = x + step[:, 0], np.clip(y + step[:, 1], 0.0, height - 1.0)
+    value = _bilinear(src, x, y)[0]
+    miss = np.degrees(np.arccos(np.clip(np.sum(value * targets, axis=1) / np.linalg.norm(value, axis=1), -1.0, 1.0)))
+    out = coords.px_to_lonlat(np.stack([x % width, y], axis=1), width)
+    out[miss * width / 360.0 > tolerance] = np.nan
+    return out.reshape(np.shape(lonlat))
+
+
+def line_straightness(inverse_map: ArrayLike, samples: ArrayLike, width: int | None = None) -> float:
+    """How straight a line comes out: its output image's largest distance from its best straight fit.
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, W, 2)
+        See :func:`local_jacobians`.
+    samples : array_like, shape (s, 2)
+        Input ``[lon, lat]`` along the line (for example ``coords.geodesic(start, end, t)``).
+    width : int, optional
+        Pixels are counted at this image width (default: the map's).
+
+    Returns
+    -------
+    float
+        In pixels; NaN if the output does not show every sample.
+    """
+    m = _check_map(inverse_map)
+    out = forward_points(m, samples)
+    if not np.all(np.isfinite(out)):
+        return float("nan")
+    return straightness(out, width or m.shape[1], fit="best")
+
+
+def coverage(inverse_map: ArrayLike, cells: int = 360) -> float:
+    """The share of the input sphere's area that the output shows.
+
+    The input sphere is cut into a ``cells`` x ``cells / 2`` equirectangular grid; a cell
+    counts as shown if an output pixel shows a point in it or, failing that, if
+    :func:`forward_points` finds an output position for its centre (so a region shown
+    smaller than one pixel per cell still counts).
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, W, 2)
+    cells : int
+        Cells around the equator (even).
+
+    Returns
+    -------
+    float
+        Between 0 and 1, each cell weighted by its area.
+    """
+    if isinstance(cells, bool) or not isinstance(cells, (int, np.integer)) or cells < 4 or cells % 2:
+        raise ValueError(f"cells must be an even whole number of at least 4, got {cells!r}")
+    m = _check_map(inverse_map)
+    px = coords.lonlat_to_px(m.reshape(-1, 2), cells)
+    col = np.floor(px[:, 0] + 0.5).astype(np.int64) % cells
+    row = np.clip(np.floor(px[:, 1] + 0.5).astype(np.int64), 0, cells // 2 - 1)
+    hit = np.zeros(cells * cells // 2, dtype=bool)
+    hit[row * cells + col] = True
+    missing = np.flatnonzero(~hit)
+    if len(missing):
+        centres = coords.px_to_lonlat(np.stack([missing % cells, missing // cells], axis=1).astype(np.float64), cells)
+        hit[missing] = np.isfinite(forward_points(m, centres)[:, 0])
+    area = np.repeat(_area(cells // 2), cells)
+    return float(np.sum(area * hit))
+
+
+def _inside_polygon(lonlat: NDArray[np.float64], vertices: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Whether positions lie inside a spherical polygon with great-circle edges (even-odd rule).
+
+    In the gnomonic projection about the vertices' centre, great circles are straight lines,
+    so the planar test is exact for polygons smaller than a hemisphere.
+    """
+    corners = coords.lonlat_to_xyz(vertices)
+    centre = corners.sum(axis=0)
+    centre /= np.linalg.norm(centre)
+    east, north = coords.local_frame(coords.xyz_to_lonlat(centre))
+
+    def project(xyz: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        depth = xyz @ centre
+        return xyz @ east / depth, xyz @ north / depth, depth
+
+    px, py, depth = project(coords.lonlat_to_xyz(lonlat))
+    vx, vy, _ = project(corners)
+    inside = np.zeros(px.shape, dtype=bool)
+    for i in range(len(vx)):
+        ax, ay, bx, by = vx[i - 1], vy[i - 1], vx[i], vy[i]
+        crosses = (ay > py) != (by > py)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            at = ax + (py - ay) * (bx - ax) / (by - ay)
+        inside ^= crosses & (px < at)
+    return inside & (depth > 0)
+
+
+def cage_motion(inverse_map: ArrayLike, vertices: ArrayLike, width: int | None = None) -> float:
+    """How far the inside of a fixed cage moved.
+
+    The largest distance between an output pixel inside the cage and the input position it
+    shows.
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, W, 2)
+    vertices : array_like, shape (n, 2)
+        The cage's ``[lon, lat]`` in degrees (its edges are great-circle arcs), smaller than
+        a hemisphere.
+    width : int, optional
+        Pixels are counted at this image width (default: the map's).
+
+    Returns
+    -------
+    float
+        In pixels; 0 for a cage that holds its inside perfectly still.
+    """
+    m = _check_map(inverse_map)
+    corners = np.asarray(vertices, dtype=np.float64)
+    if corners.ndim != 2 or corners.shape[1] != 2 or len(corners) < 3:
+        raise ValueError(f"expected cage vertices of shape (n >= 3, 2), got {corners.shape}")
+    lon, lat = coords.grid_lonlat(m.shape[1])
+    grid = np.stack(np.meshgrid(lon, lat), axis=-1)
+    inside = _inside_polygon(grid, corners)
+    if not inside.any():
+        raise ValueError("no output pixel lies inside the cage")
+    moved = coords.angular_distance(m[inside], grid[inside])
+    return float(moved.max() * (width or m.shape[1]) / 360.0)

@@ -1,0 +1,129 @@
+"""Quality figures measured from inverse maps, checked on maps whose answers are known exactly."""
+
+import numpy as np
+import pytest
+
+from omniwidget.core import coords
+from omniwidget.core.handles import LineHandle
+from omniwidget.core.moebius import Moebius
+from omniwidget.core.quality import (
+    cage_motion,
+    conformal_distortion,
+    coverage,
+    fold_over,
+    forward_points,
+    line_straightness,
+    straightness,
+)
+from omniwidget.core.warping import grid_inverse, inverse_lonlat
+
+from .conftest import random_lonlat
+
+
+def identity_map(width: int) -> np.ndarray:
+    lon, lat = coords.grid_lonlat(width)
+    return np.stack(np.meshgrid(lon, lat), axis=-1)
+
+
+def moebius_map(m: Moebius, width: int) -> np.ndarray:
+    return inverse_lonlat(grid_inverse(m.inverse), width)
+
+
+def test_one_moebius_warp_is_conformal():
+    d = conformal_distortion(moebius_map(Moebius.point_map([10, 20], [35, -5], 2.0, 25.0), 2048))
+    assert d.mean < 1e-4 and d.p99 < 1e-4
+    assert np.all(np.isfinite(d.per_pixel[1:-1])) and np.isnan(d.per_pixel[[0, -1]]).all()
+
+
+def test_conformal_distortion_detects_a_non_conformal_map():
+    grid = identity_map(512)
+    squeezed = grid.copy()
+    squeezed[..., 1] = np.degrees(np.arcsin(np.sin(np.radians(grid[..., 1])) * 0.8))  # equal-area-like squeeze
+    d = conformal_distortion(squeezed)
+    assert d.mean > 0.05 and d.p99 >= d.mean
+    assert conformal_distortion(grid).p99 < 1e-6
+    with pytest.raises(ValueError, match="max_abs_lat"):
+        conformal_distortion(grid, max_abs_lat=0)
+
+
+def test_fold_over_finds_a_mirrored_band_and_its_area():
+    width = 512
+    grid = identity_map(width)
+    assert fold_over(grid).area == 0 and not fold_over(moebius_map(Moebius.point_map([0, 80], [40, -60], 3.0, 90), width)).mask.any()
+    folded = grid.copy()
+    band = (grid[..., 0] > 10) & (grid[..., 0] < 40)
+    folded[..., 0] = np.where(band, 50 - grid[..., 0], grid[..., 0])  # mirrored between 10 and 40 degrees
+    result = fold_over(folded)
+    columns = np.flatnonzero(result.mask[100])
+    lon = grid[0, :, 0]
+    assert lon[columns].min() > 9 and lon[columns].max() < 41
+    assert result.area == pytest.approx(30 / 360, rel=0.05)
+
+
+@pytest.mark.parametrize("width", [512, 2048])
+def test_forward_points_invert_a_moebius_map(rng, width):
+    m = Moebius.point_map([170, 40], [-150, -20], 1.7, 30)
+    points = np.concatenate([random_lonlat(rng, 300), [[179.99, 0.0], [-180.0, 10.0], [0.0, 85.0], [90.0, -85.0]]])
+    expected = m(points)
+    inside = np.abs(expected[:, 1]) < 90 - 180 / width  # the first and last rows bound the search
+    got = forward_points(moebius_map(m, width), points)
+    assert np.all(np.isfinite(got[inside]))
+    error = coords.angular_distance(got[inside], expected[inside]) * width / 360
+    assert error.max() < 0.01, error.max()
+
+
+def test_points_the_output_does_not_show_are_nan_and_coverage_counts_them():
+    grid = identity_map(1024)
+    clamped = grid.copy()
+    clamped[..., 1] = np.clip(grid[..., 1], -30, 30)  # shows only the band |lat| <= 30
+    got = forward_points(clamped, [[20.0, 10.0], [20.0, 60.0], [-100.0, -80.0]])
+    assert np.all(np.isfinite(got[0])) and np.isnan(got[1:]).all()
+    assert coverage(clamped) == pytest.approx(np.sin(np.radians(30)), abs=0.01)
+    assert coverage(grid) == 1.0
+
+
+def test_coverage_counts_regions_shown_smaller_than_a_cell():
+    m = Moebius.point_map([0, 0], [0, 0], 8.0)  # zoom in 8x: the far side shrinks to a few pixels
+    assert coverage(moebius_map(m, 512)) > 0.99
+
+
+def test_line_straightness_measures_the_output_image_of_a_line(rng):
+    width = 2048
+    start, end = (-20.0, 30.0), (25.0, 40.0)
+    samples = coords.geodesic(start, end, np.linspace(0, 1, 50))
+    bent = line_straightness(identity_map(width), samples)
+    assert bent == pytest.approx(straightness(samples, width, fit="best"), abs=0.01) and bent > 5
+    m = LineHandle(start, end).moebius()
+    rectified = line_straightness(moebius_map(m, width), samples)
+    assert rectified == pytest.approx(straightness(m(samples), width, fit="best"), abs=0.01) and rectified < bent / 10
+
+
+def test_best_fit_of_a_circular_arc_is_half_its_sagitta():
+    t = np.linspace(-0.3, 0.3, 401)
+    arc = np.stack([np.sin(t), np.cos(t) - 1], axis=1) * 10.0  # degrees; chord at both ends
+    chord = straightness(arc, 360, fit="chord")
+    assert chord == pytest.approx(10 * (1 - np.cos(0.3)), rel=1e-6)
+    assert straightness(arc, 360, fit="best") == pytest.approx(chord / 2, rel=1e-3)
+
+
+def test_cage_motion_is_zero_for_a_still_cage_and_the_shift_for_a_moved_one():
+    width = 1024
+    cage = [(-30.0, -10.0), (0.0, -10.0), (0.0, 20.0), (-30.0, 20.0)]
+    assert cage_motion(identity_map(width), cage) < 1e-9
+    shifted = moebius_map(Moebius.rotation([0, 90], 1.0), width)  # everything turns 1 degree east
+    assert cage_motion(shifted, cage) == pytest.approx(width / 360, rel=1e-3)
+    with pytest.raises(ValueError, match="no output pixel"):
+        cage_motion(identity_map(64), [(0.0, 0.0), (0.1, 0.0), (0.0, 0.1)])
+
+
+def test_bad_maps_are_refused_with_where_they_are_bad():
+    grid = identity_map(64)
+    grid[5, 7] = np.nan
+    with pytest.raises(ValueError, match="row 5, column 7"):
+        fold_over(grid)
+    with pytest.raises(ValueError, match=r"\(H, 2H, 2\)"):
+        coverage(np.zeros((10, 10, 2)))
+    with pytest.raises(ValueError, match="cells"):
+        coverage(identity_map(64), cells=7)
+    with pytest.raises(ValueError, match="fit"):
+        straightness([[0, 0], [1, 1]], 360, fit="mean")
