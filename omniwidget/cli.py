@@ -9,10 +9,15 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from ._version import __version__
+
+if TYPE_CHECKING:
+    from .core.pipeline import Result
 
 EXIT_BAD_INPUT = 2
 
@@ -66,6 +71,16 @@ def _check_output(path: Path, suffixes: Sequence[str], what: str) -> None:
         raise ImageError(f"{path}: the folder {path.parent} does not exist")
 
 
+def _warp_quietly(warp: Callable[..., Result], *args: Any, **kwargs: Any) -> Result:
+    """Run a warp; its conflict warnings go to stderr as one line each instead of Python warnings."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = warp(*args, **kwargs)
+    for message in result.warnings:
+        print(f"omniwidget: warning: {message}", file=sys.stderr)
+    return result
+
+
 def _cmd_warp(args: argparse.Namespace) -> None:
     from .core.errors import ImageError
     from .core.handles import load_handles
@@ -81,7 +96,7 @@ def _cmd_warp(args: argparse.Namespace) -> None:
         raise ImageError(f"--width {args.width}: the width must be even and at least 2")
     handles = load_handles(args.handles)
     image = check_panorama(read_image(args.input), str(args.input))
-    result = warp(image, handles, width=args.width, order=args.order)
+    result = _warp_quietly(warp, image, handles, width=args.width, order=args.order)
     if args.map is not None:
         write_image(args.map, result.inverse_map())  # .npy: the float32 array as it is
     write_image(args.output, result.image)
@@ -101,7 +116,7 @@ def _cmd_demo(args: argparse.Namespace) -> None:
     image = sample_image()
     handles = Handles.from_dict(DEMO_HANDLES)
     start = time.perf_counter()
-    result = warp(image, handles)
+    result = _warp_quietly(warp, image, handles)
     seconds = time.perf_counter() - start
     before = draw_handles(image, handles, stage="input")
     after = draw_handles(result.image, handles, stage="output")

@@ -130,6 +130,8 @@ def test_several_handles_are_blended(files, capsys):
     (files / "three.json").write_text(json.dumps(doc))
     assert main(["warp", str(files / "in.png"), "-H", str(files / "three.json"), "-o", str(files / "three.png")]) == 0
     assert read_image(files / "three.png").shape == (128, 256, 3)
+    err = capsys.readouterr().err  # these handles fold the output: said in one line, not a Python warning
+    assert err.startswith("omniwidget: warning: the warp folds over near handles[0] (point)") and err.count("\n") == 1
 
 
 def test_the_command_runs_as_a_program(files):
