@@ -10,6 +10,7 @@ from omniwidget.core.bbw import normalize_rows
 from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
 from omniwidget.core.pipeline import FOLD_WARNING_AREA, BlendWarning, warp
 from omniwidget.core.quality import cage_motion, coverage, straightness
+from omniwidget.core.scenes import mark_lines, synthetic_room
 
 W = 2048
 
@@ -20,43 +21,11 @@ POINT = PointHandle((-60.0, -30.0), target=(-55.0, -27.0), scale=1.1, rotation=1
 KEEP_CLEAR = ((np.array((*CAGE, (-135.0, -5.0))), 12.0), (np.array([POINT.position, POINT.target]), 12.0))
 
 
-def _room_scene(seed: int, n_lines: int, keep_clear=(), separation: float = 8.0, piece: float = 45.0):
-    """A synthetic room and up to ``n_lines`` of its straight lines, as a person would mark them.
-
-    Lines are cut into pieces of at most ``piece`` degrees, keep those bent by 5 px or more,
-    and are picked at random so that no two (in the input or rectified by eq. 4) come closer
-    than ``separation`` degrees except near an endpoint they share, and none comes within
-    the given distance of the ``keep_clear`` points.
-    """
-    from omniwidget.core.scenes import subdivide_line, synthetic_room
-
+def _room_scene(seed: int, n_lines: int, keep_clear=()):
+    """A synthetic room and ``n_lines`` of its lines, marked as a person would (:func:`mark_lines`)."""
     rng = np.random.default_rng(seed)
     scene = synthetic_room(W, size=(4.0, 3.0, 3.0), camera=(0.3, -0.2, -1.0), yaw=float(rng.uniform(0, 90)))
-    t = np.linspace(0, 1, 60)
-    candidates = [
-        p
-        for line in scene.lines_where(max_abs_lat=65)
-        for p in subdivide_line(line, piece)
-        if straightness(coords.geodesic(p.start, p.end, t), W) >= 5
-    ]
-    picked, clouds = [], []
-    for i in rng.permutation(len(candidates)):
-        line = candidates[i]
-        src = coords.geodesic(line.start, line.end, t)
-        cloud = np.concatenate([src, LineHandle(line.start, line.end).moebius()(src)])
-        ok = all(coords.angular_distance(cloud[:, None], np.asarray(c)[None]).min() >= r for c, r in keep_clear)
-        for other, cloud_other in zip(picked, clouds, strict=True):
-            far = np.ones(len(cloud), dtype=bool)
-            for end in (line.start, line.end):
-                if coords.angular_distance(np.array([other.start, other.end]), end).min() < 1e-6:
-                    far &= coords.angular_distance(cloud, end) > 2 * separation
-            ok = ok and coords.angular_distance(cloud[far][:, None], cloud_other[None]).min() >= separation
-        if ok:
-            picked.append(line)
-            clouds.append(cloud)
-        if len(picked) == n_lines:
-            break
-    return scene, picked
+    return scene, mark_lines(scene, n_lines, seed=seed, keep_clear=keep_clear)
 
 
 def _lines_doc(lines, *extra) -> Handles:

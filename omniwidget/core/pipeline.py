@@ -249,7 +249,7 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
         return Result(out, handles, constraints, None, None, None, None, None, inverse, timings, (), image.shape[1], no_folds)
 
     from .bbw import bbw, normalize_rows
-    from .blend import blended_inverse
+    from .blend import blended_inverse, mesh_pixel_weights
     from .locate import interpolate, locate_grid
     from .mesh import adaptive_mesh
 
@@ -261,7 +261,7 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
     face, bary = locate_grid(mesh.vertices, mesh.faces, width)
     lap("locate")
     inverses = [m.inverse for m in maps]
-    coordinates = remap_coordinates(blended_inverse(inverses, mesh.faces, weights, face, bary), width, image.shape[1])
+    coordinates = remap_coordinates(blended_inverse(inverses, mesh_pixel_weights(mesh.faces, weights, face, bary)), width, image.shape[1])
     lap("blend")
     out = remap(pad_panorama(image), coordinates, order)
     lap("resampling")
@@ -270,7 +270,7 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
         at = interpolate(weights, mesh.faces, face[folds.mask], bary[folds.mask])
         problems.append(_fold_warning(handles, constraints.controls, at, folds.area))
     lap("fold check")
-    inverse = blended_inverse(inverses, mesh.faces, weights, face, bary, precision="double")
+    inverse = blended_inverse(inverses, mesh_pixel_weights(mesh.faces, weights, face, bary, np.float64), precision="double")
     for p in problems:
         warnings.warn(p, BlendWarning, stacklevel=2)
     return Result(

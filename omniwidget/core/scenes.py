@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import coords
 
 __all__ = [
+    "mark_lines",
     "FACE_COLORS",
     "FACE_NAMES",
     "LINE_COLOR",
@@ -267,6 +268,74 @@ def subdivide_line(line: SceneLine, max_length: float) -> list[SceneLine]:
     pieces[0] = replace(pieces[0], start=line.start, start_3d=line.start_3d)
     pieces[-1] = replace(pieces[-1], end=line.end, end_3d=line.end_3d)
     return pieces
+
+
+def mark_lines(
+    scene: Scene,
+    count: int,
+    *,
+    seed: int = 0,
+    keep_clear: Sequence[tuple[ArrayLike, float]] = (),
+    separation: float = 8.0,
+    piece: float = 45.0,
+    min_bend: float = 5.0,
+    max_abs_lat: float = 65.0,
+) -> list[SceneLine]:
+    """Pick up to ``count`` of a scene's lines as a person would mark them for rectification.
+
+    Lines are cut into pieces of at most ``piece`` degrees (:func:`subdivide_line`); pieces
+    bent by at least ``min_bend`` pixels (from their chord, at the scene's width) are taken
+    in a random order and kept when neither they nor their eq. (4) rectified images come
+    closer than ``separation`` degrees to a kept line's (except near an endpoint they
+    share) or closer than the given distance to any ``keep_clear`` point.
+
+    Parameters
+    ----------
+    scene : Scene
+    count : int
+    seed : int
+        Seed of the random order.
+    keep_clear : sequence of (array_like of shape (p, 2), float)
+        ``[lon, lat]`` points and the distance in degrees that lines must keep from them.
+    separation, piece, min_bend, max_abs_lat : float
+        Degrees, degrees, pixels, degrees.
+
+    Returns
+    -------
+    list of SceneLine
+        At most ``count``, fewer if the scene has no more that fit.
+    """
+    from .handles import LineHandle
+    from .quality import straightness
+
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, 1, 60)
+    width = scene.image.shape[1]
+    candidates = [
+        p
+        for line in scene.lines_where(max_abs_lat=max_abs_lat)
+        for p in subdivide_line(line, piece)
+        if straightness(coords.geodesic(p.start, p.end, t), width) >= min_bend
+    ]
+    picked: list[SceneLine] = []
+    clouds: list[FloatArray] = []
+    for i in rng.permutation(len(candidates)):
+        if len(picked) == count:
+            break
+        line = candidates[i]
+        src = coords.geodesic(line.start, line.end, t)
+        cloud = np.concatenate([src, LineHandle(line.start, line.end).moebius()(src)])
+        ok = all(coords.angular_distance(cloud[:, None], np.asarray(c, np.float64)[None]).min() >= r for c, r in keep_clear)
+        for other, cloud_other in zip(picked, clouds, strict=True):
+            far = np.ones(len(cloud), dtype=bool)
+            for end in (line.start, line.end):
+                if coords.angular_distance(np.array([other.start, other.end]), end).min() < 1e-6:
+                    far &= coords.angular_distance(cloud, end) > 2 * separation
+            ok = ok and coords.angular_distance(cloud[far][:, None], cloud_other[None]).min() >= separation
+        if ok:
+            picked.append(line)
+            clouds.append(cloud)
+    return picked
 
 
 def synthetic_room(
