@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from . import coords
 from .handles import CageHandle, Handles, LineHandle, PointHandle
 from .moebius import Moebius
+from .rectify import Anchor, Bone, RectifySolution, solve_bones
 
 __all__ = ["JOINT_DISTANCE", "SAMPLES", "Constraints", "Control", "build_constraints"]
 
@@ -69,12 +70,16 @@ class Constraints:
     lines : tuple of (int, ndarray)
         For each line piece, its control index and its input samples ``[lon, lat]`` (s, 2),
         from which straightness is measured.
+    rectified : RectifySolution or None
+        With ``options.rectify == "all"`` and at least one rectified line: the solve of
+        Sec. 3.4 that placed the lines' control points (:mod:`.rectify`).
     """
 
     controls: tuple[Control, ...]
     points: NDArray[np.float64]
     values: NDArray[np.float64]
     lines: tuple[tuple[int, NDArray[np.float64]], ...]
+    rectified: RectifySolution | None = None
 
 
 def _arc_crossing(a0: NDArray, a1: NDArray, b0: NDArray, b1: NDArray) -> NDArray | None:
@@ -194,6 +199,7 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     pieces_of: dict[int, list[int]] = {}
     for k, piece in enumerate(pieces):
         pieces_of.setdefault(piece.handle, []).append(k)
+    solution = _rectify_all(handles, pieces, joint_of, t) if handles.options.rectify == "all" else None
     joint_rows: dict[int, dict[int, float]] = {}
     joint_points: dict[int, NDArray[np.float64]] = {}
 
@@ -223,7 +229,12 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
                 part = f", part {n} of {len(own)}" if len(own) > 1 else ""
                 start, end = coords.xyz_to_lonlat(piece.start), coords.xyz_to_lonlat(piece.end)
                 # explicit targets keep the handle as drawn; otherwise the piece's (split, snapped) ends
-                line = h if h.targets is not None else LineHandle(tuple(start), tuple(end), rectify=h.rectify)
+                if h.targets is not None:
+                    line = h
+                elif solution is not None and solution.targets[k] is not None:
+                    line = LineHandle(tuple(start), tuple(end), rectify=False, targets=tuple(map(tuple, solution.targets[k])))
+                else:
+                    line = LineHandle(tuple(start), tuple(end), rectify=h.rectify)
                 m = line.moebius()
                 controls.append(Control(m, i, f"handles[{i}] (line{part})"))
                 c = len(controls) - 1
@@ -248,4 +259,29 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     for r, (_, weights) in enumerate(rows):
         for c, w in weights.items():
             values[r, c] = w
-    return Constraints(tuple(controls), points, values, tuple(line_samples))
+    return Constraints(tuple(controls), points, values, tuple(line_samples), solution)
+
+
+def _rectify_all(handles: Handles, pieces: list[_Piece], joint_of: dict[tuple[int, int], int], t: NDArray) -> RectifySolution | None:
+    """Sec. 3.4 for the rectified line pieces; the other handles take part as they are."""
+    free = [p.line.rectify and p.line.targets is None for p in pieces]
+    if not any(free):
+        return None
+    bones = []
+    for k, piece in enumerate(pieces):
+        start, end = coords.xyz_to_lonlat(piece.start), coords.xyz_to_lonlat(piece.end)
+        outputs = None
+        if not free[k]:
+            m = piece.line.moebius() if piece.line.targets is not None else Moebius.identity()
+            outputs = m(coords.geodesic(start, end, t))
+        bones.append(Bone(tuple(start), tuple(end), free[k], (joint_of.get((k, 0)), joint_of.get((k, 1))), outputs))
+    anchors = []
+    for h in handles.handles:
+        if isinstance(h, PointHandle):
+            anchors.append(Anchor(np.array([h.position], np.float64), np.array([h.final], np.float64)))
+        elif isinstance(h, CageHandle):
+            n = len(h.vertices)
+            for v in range(n):
+                w = (v + 1) % n
+                anchors.append(Anchor(coords.geodesic(h.vertices[v], h.vertices[w], t), coords.geodesic(h.finals[v], h.finals[w], t)))
+    return solve_bones(bones, anchors, samples=len(t))

@@ -191,6 +191,20 @@ def _merge_duplicates(
     return unique, merged, problems
 
 
+def _crossing_lines(constraints: Constraints) -> list[str]:
+    """Warnings for lines whose output images cross (their maps disagree: the blend folds between them)."""
+    from .rectify import crossing_pairs
+
+    controls = constraints.controls
+    curves = [controls[c].moebius(samples) for c, samples in constraints.lines]
+    found = []
+    for a, b in crossing_pairs(curves):
+        ha, hb = controls[constraints.lines[a][0]].handle, controls[constraints.lines[b][0]].handle
+        if ha != hb:
+            found.append(f"handles[{ha}] (line) and handles[{hb}] (line) cross each other in the output")
+    return sorted(set(found))
+
+
 def _fold_warning(handles: Handles, controls: tuple[Control, ...], pixel_weights: NDArray, area: float) -> str:
     """Name the handles whose weights are strong where the output folds, (pixels, k) weights."""
     strong = np.flatnonzero(pixel_weights.max(axis=0) >= 0.1)
@@ -253,9 +267,11 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
     from .locate import interpolate, locate_grid
     from .mesh import adaptive_mesh
 
+    problems_before = _crossing_lines(constraints)
     mesh = adaptive_mesh(constraints.points)
     lap("mesh")
     b, bc, problems = _merge_duplicates(mesh.sample_index, constraints.values, constraints.controls)
+    problems = problems_before + problems
     weights = normalize_rows(bbw(mesh.vertices, mesh.faces, b, bc))
     lap("weights")
     face, bary = locate_grid(mesh.vertices, mesh.faces, width)

@@ -1,0 +1,410 @@
+"""Rectify all lines at once: the optimal control-point positions of Sec. 3.4, eqs. (5)-(12).
+
+Rectifying each line by eq. (4) alone keeps its endpoints and pulls its midpoint onto
+their chord, which makes close lines cross (the paper's Fig. 6). Here the output
+``[lon, lat]`` of every rectified line's three control points are unknowns of one linear
+least-squares problem, in the equirectangular plane:
+
+- relative positions (eqs. 5-8): for every sample ``i`` of a line ``k`` and every sample
+  ``j`` of another handle ``l`` closer than ``S_k / 4`` (``S_k`` the distance between
+  ``k``'s endpoints), their output offset should equal their input offset, with weight
+  ``(1/20)(1 - 4 r / S_k)^4``. A rectified line's output samples lie on the chord of its
+  output endpoints (``(1 - t) P1 + t P3``); the samples of handles that are not solved for
+  (lines that keep their map, point handles, cage edges) are where their maps put them;
+- rectification (eq. 9, weight 100): the midpoint on the middle of the endpoints;
+- keep in place (eq. 10, weight 0.3): each endpoint where the person put it;
+- joints (eq. 11): the authors tie joined endpoints with weight 1000; here their
+  endpoints were already snapped to one point, so each joint is a single unknown (the
+  weight's limit) and a joint cannot open at all.
+
+All terms are in displacement form (output minus input), so longitudes are unwrapped per
+line and nothing depends on where the ±180° seam falls. The longitude and latitude
+problems share one symmetric positive definite matrix (every solved endpoint has a
+keep-in-place term), factored once and solved for both.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import coords
+from .handles import Handles, LineHandle
+from .moebius import Moebius
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+__all__ = [
+    "KEEP_WEIGHT",
+    "RECTIFY_WEIGHT",
+    "RELATIVE_WEIGHT",
+    "Anchor",
+    "Bone",
+    "RectifySolution",
+    "crossing_pairs",
+    "rectify_line",
+    "solve_bones",
+]
+
+#: Eq. (9): weight of a rectified line's midpoint on the middle of its endpoints.
+RECTIFY_WEIGHT = 100.0
+#: Eq. (10): weight of each solved endpoint staying where it was.
+KEEP_WEIGHT = 0.3
+#: Eq. (8): the relative-position weight at distance 0.
+RELATIVE_WEIGHT = 1.0 / 20.0
+
+
+@dataclass(frozen=True)
+class Bone:
+    """A line (or a piece of one, after crossings are split) in the solve.
+
+    Attributes
+    ----------
+    start, end : tuple of float
+        Input ``[lon, lat]`` in degrees (joined ends already snapped together).
+    free : bool
+        Solved for (a rectified line) or kept (its output is ``outputs``).
+    joints : tuple of (int or None, int or None)
+        Joint ids of the start and end: equal ids are one point.
+    outputs : ndarray of float64, shape (s, 2) or None
+        For a kept bone, where its ``s`` samples (``geodesic(start, end, linspace(0, 1, s))``) land.
+    """
+
+    start: tuple[float, float]
+    end: tuple[float, float]
+    free: bool
+    joints: tuple[int | None, int | None] = (None, None)
+    outputs: NDArray[np.float64] | None = None
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """Samples of a handle that is not solved for (a point handle, a cage edge) and where they go.
+
+    Attributes
+    ----------
+    inputs, outputs : ndarray of float64, shape (s, 2)
+        ``[lon, lat]`` in degrees, in order along the handle (one row for a point).
+    """
+
+    inputs: NDArray[np.float64]
+    outputs: NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class RectifySolution:
+    """The solved control points.
+
+    Attributes
+    ----------
+    targets : list of ndarray or None
+        Per bone: the output start, middle and end ``[lon, lat]`` (3, 2) of a free bone,
+        None for a kept one.
+    matrix : scipy.sparse.csr_matrix, shape (n, n)
+        The normal matrix of the least-squares problem (one coordinate), for inspection.
+    displacement : float
+        Mean distance in degrees between the solved endpoints and their input positions.
+    """
+
+    targets: list[NDArray[np.float64] | None]
+    matrix: sp.csr_matrix
+    displacement: float
+
+
+class _Rows:
+    """Residual rows ``Σ coef · x + const`` (lon and lat constants apart), weighted, in COO form."""
+
+    def __init__(self) -> None:
+        self.row: list[NDArray] = []
+        self.col: list[NDArray] = []
+        self.val: list[NDArray] = []
+        self.const: list[NDArray] = []  # (r, 2)
+        self.weight: list[NDArray] = []
+        self.count = 0
+
+    def add(self, entries: Sequence[tuple[NDArray, NDArray]], const: NDArray, weight: NDArray) -> None:
+        """Add ``r`` rows; each entry is (variable index per row, coefficient per row), -1 = none."""
+        r = len(weight)
+        ids = np.arange(self.count, self.count + r)
+        for var, coef in entries:
+            var, coef = np.broadcast_to(var, (r,)), np.broadcast_to(coef, (r,))
+            used = var >= 0
+            self.row.append(ids[used])
+            self.col.append(var[used])
+            self.val.append(coef[used])
+        self.const.append(np.broadcast_to(const, (r, 2)))
+        self.weight.append(np.broadcast_to(weight, (r,)))
+        self.count += r
+
+
+def _slots(bones: Sequence[Bone]) -> tuple[NDArray, NDArray, int]:
+    """Unknown index of each free bone's (start, middle, end), -1 where kept, and the known values.
+
+    Returns ``var`` (b, 3) int, ``known`` (b, 3, 2) float (each free bone's control points in
+    its own unwrapped frame; a joint with a kept bone takes that bone's output), and the
+    number of unknowns.
+    """
+    var = np.full((len(bones), 3), -1, dtype=np.int64)
+    known = np.zeros((len(bones), 3, 2))
+    fixed_joint: dict[int, NDArray] = {}
+    for b in bones:
+        if not b.free:
+            for e, j in ((0, b.joints[0]), (-1, b.joints[1])):
+                if j is not None:
+                    fixed_joint[j] = b.outputs[e]
+    joint_var: dict[int, int] = {}
+    n = 0
+    for k, b in enumerate(bones):
+        if not b.free:
+            continue
+        start = np.asarray(b.start, np.float64)
+        mid = coords.geodesic_midpoint(b.start, b.end)
+        end = np.asarray(b.end, np.float64)
+        for s, p in enumerate((start, mid, end)):
+            known[k, s] = (coords.unwrap_lon(p[0], start[0]), p[1])
+        for s, j in ((0, b.joints[0]), (2, b.joints[1])):
+            if j is not None and j in fixed_joint:
+                out = fixed_joint[j]
+                known[k, s] = (coords.unwrap_lon(out[0], known[k, s, 0]), out[1])  # a known output, not an unknown
+            elif j is not None and j in joint_var:
+                var[k, s] = joint_var[j]
+            else:
+                var[k, s] = n
+                if j is not None:
+                    joint_var[j] = n
+                n += 1
+        var[k, 1] = n
+        n += 1
+    return var, known, n
+
+
+def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: int = 50) -> RectifySolution:
+    """Solve Sec. 3.4's least squares for the free bones' output control points.
+
+    Parameters
+    ----------
+    bones : sequence of Bone
+    anchors : sequence of Anchor
+        Point handles and cage edges, which keep their own outputs and take part in the
+        relative-position terms.
+    samples : int
+        Samples per bone in the relative-position terms (the paper's 50).
+
+    Returns
+    -------
+    RectifySolution
+    """
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 2:
+        raise ValueError(f"samples must be a whole number of at least 2, got {samples!r}")
+    import scipy.sparse as sp
+    from scipy.linalg import cho_factor, cho_solve
+
+    var, known, n = _slots(bones)
+    t = np.linspace(0.0, 1.0, samples)
+    # every participant's samples, their displacement where known, and how free bones move them
+    inputs, disp, owner, param, free = [], [], [], [], []
+    spans: list[float] = []
+    for k, b in enumerate(bones):
+        src = coords.geodesic(b.start, b.end, t)
+        src[:, 0] = coords.unwrap_lon(src[:, 0], known[k, 0, 0] if b.free else src[0, 0])
+        if b.free:
+            d = np.zeros((samples, 2))
+        else:
+            d = np.stack([coords.wrap_lon(b.outputs[:, 0] - src[:, 0]), b.outputs[:, 1] - src[:, 1]], axis=1)
+        inputs.append(src)
+        disp.append(d)
+        owner.append(np.full(samples, k))
+        param.append(t)
+        free.append(np.full(samples, b.free))
+        spans.append(float(np.hypot(coords.wrap_lon(src[-1, 0] - src[0, 0]), src[-1, 1] - src[0, 1])))
+    for a, anchor in enumerate(anchors):
+        src = np.asarray(anchor.inputs, np.float64).reshape(-1, 2)
+        out = np.asarray(anchor.outputs, np.float64).reshape(-1, 2)
+        inputs.append(src)
+        disp.append(np.stack([coords.wrap_lon(out[:, 0] - src[:, 0]), out[:, 1] - src[:, 1]], axis=1))
+        owner.append(np.full(len(src), len(bones) + a))
+        param.append(np.linspace(0.0, 1.0, len(src)) if len(src) > 1 else np.zeros(1))
+        free.append(np.zeros(len(src), dtype=bool))
+        spans.append(float(np.hypot(coords.wrap_lon(src[-1, 0] - src[0, 0]), src[-1, 1] - src[0, 1])) if len(src) > 1 else 0.0)
+    inputs_all, disp_all = np.concatenate(inputs), np.concatenate(disp)
+    owner_all, param_all, free_all = np.concatenate(owner), np.concatenate(param), np.concatenate(free)
+    bone_of = np.where(owner_all < len(bones), owner_all, 0)
+
+    def moved(idx: NDArray, sign: float) -> tuple[list[tuple[NDArray, NDArray]], NDArray]:
+        """Entries and known part of ``sign * displacement`` of samples ``idx``."""
+        is_free = free_all[idx]
+        k, tt = bone_of[idx], param_all[idx]
+        v0, v2 = np.where(is_free, var[k, 0], -1), np.where(is_free, var[k, 2], -1)
+        base = np.where(is_free[:, None], (1 - tt)[:, None] * known[k, 0] + tt[:, None] * known[k, 2], 0.0)
+        const = np.where(is_free[:, None], base, disp_all[idx])  # free: x(=0 at known) + base - input
+        const = const.copy()
+        const[is_free] -= inputs_all[idx][is_free]
+        # a kept slot of a free bone (joined to a kept bone) sits in `known`, not in x
+        return [(v0, sign * (1 - tt) * is_free), (v2, sign * tt * is_free)], sign * const
+
+    rows = _Rows()
+    for k in range(len(spans)):
+        span = spans[k]
+        mine = np.flatnonzero(owner_all == k)
+        if span <= 0 or not len(mine):
+            continue
+        diff = inputs_all[mine][:, None, :] - inputs_all[None, :, :]
+        diff[..., 0] = coords.wrap_lon(diff[..., 0])
+        r = np.hypot(diff[..., 0], diff[..., 1])
+        close = (r < span / 4) & (owner_all[None, :] != k) & (free_all[mine][:, None] | free_all[None, :])
+        i, j = np.nonzero(close)
+        if not len(i):
+            continue
+        w = RELATIVE_WEIGHT * (1 - 4 * r[i, j] / span) ** 4
+        entries_i, const_i = moved(mine[i], 1.0)
+        entries_j, const_j = moved(j, -1.0)
+        rows.add(entries_i + entries_j, const_i + const_j, w)
+    for k, b in enumerate(bones):
+        if not b.free:
+            continue
+        v, p = var[k], known[k]
+        rows.add(  # eq. (9): middle - (start + end) / 2
+            [(v[1:2], np.ones(1)), (v[0:1], np.full(1, -0.5)), (v[2:3], np.full(1, -0.5))],
+            (p[1] - (p[0] + p[2]) / 2)[None],
+            np.full(1, RECTIFY_WEIGHT),
+        )
+        for s in (0, 2):  # eq. (10): endpoints stay
+            rows.add([(v[s : s + 1], np.ones(1))], np.zeros((1, 2)), np.full(1, KEEP_WEIGHT))
+    a = sp.csr_matrix((np.concatenate(rows.val), (np.concatenate(rows.row), np.concatenate(rows.col))), shape=(rows.count, n))
+    w = np.concatenate(rows.weight)
+    const = np.concatenate(rows.const)
+    q = (a.T @ sp.diags(w) @ a).tocsc()
+    rhs = -(a.T @ (w[:, None] * const))
+    x = np.zeros((n, 2))
+    if n:
+        x = cho_solve(cho_factor(q.toarray()), rhs)  # n is 3 per line: small and dense is fastest
+    targets: list[NDArray[np.float64] | None] = []
+    moved_by = []
+    for k, b in enumerate(bones):
+        if not b.free:
+            targets.append(None)
+            continue
+        out = known[k] + np.where(var[k][:, None] >= 0, x[np.maximum(var[k], 0)], 0.0)
+        moved_by.extend(coords.angular_distance(out[[0, 2]], known[k][[0, 2]]))
+        out[:, 0] = coords.wrap_lon(out[:, 0])
+        targets.append(out)
+    return RectifySolution(targets, q.tocsr(), float(np.mean(moved_by)) if moved_by else 0.0)
+
+
+def crossing_pairs(curves: Sequence[NDArray[np.float64]], tolerance: float = 1e-6) -> list[tuple[int, int]]:
+    """Pairs of output curves (polylines in the equirectangular plane) that cross each other.
+
+    Touching at a shared endpoint (a joint) is not a crossing; longitudes are unwrapped
+    along each curve and between the two, so curves across the seam are compared where
+    they meet.
+
+    Parameters
+    ----------
+    curves : sequence of ndarray, shape (s, 2)
+        ``[lon, lat]`` in degrees, in order along each curve.
+    tolerance : float
+        Degrees: segment crossings closer than this to a curve's end are not counted.
+
+    Returns
+    -------
+    list of (int, int)
+        Index pairs ``(a, b)`` with ``a < b``.
+    """
+    flat = []
+    for c in curves:
+        c = np.array(c, dtype=np.float64)
+        c[:, 0] = np.unwrap(c[:, 0], period=360.0)
+        flat.append(c)
+    pairs = []
+    for a in range(len(flat)):
+        for b in range(a + 1, len(flat)):
+            p, q = flat[a], flat[b].copy()
+            q[:, 0] += 360.0 * np.round((p[:, 0].mean() - q[:, 0].mean()) / 360.0)
+            if _polylines_cross(p, q, tolerance):
+                pairs.append((a, b))
+    return pairs
+
+
+def _polylines_cross(p: NDArray, q: NDArray, tolerance: float) -> bool:
+    if p[:, 0].max() < q[:, 0].min() or q[:, 0].max() < p[:, 0].min() or p[:, 1].max() < q[:, 1].min() or q[:, 1].max() < p[:, 1].min():
+        return False
+    a0, a1 = p[:-1, None], p[1:, None]
+    b0, b1 = q[None, :-1], q[None, 1:]
+
+    def cross(u: NDArray, v: NDArray) -> NDArray:
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    da, db = a1 - a0, b1 - b0
+    denom = cross(da, db)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = cross(b0 - a0, db) / denom
+        u = cross(b0 - a0, da) / denom
+    len_a = np.hypot(*np.moveaxis(da, -1, 0))
+    len_b = np.hypot(*np.moveaxis(db, -1, 0))
+    # positions along each whole curve, to leave out crossings at the curves' own ends
+    along_a = np.concatenate([[0.0], np.cumsum(len_a[:, 0])])
+    along_b = np.concatenate([[0.0], np.cumsum(len_b[0])])
+    at_a = along_a[:-1, None] + s * len_a
+    at_b = along_b[None, :-1] + u * len_b
+    inside = (s >= 0) & (s <= 1) & (u >= 0) & (u <= 1) & (denom != 0)
+    inside &= (at_a > tolerance) & (at_a < along_a[-1] - tolerance) & (at_b > tolerance) & (at_b < along_b[-1] - tolerance)
+    return bool(inside.any())
+
+
+def rectify_line(handles: Handles, index: int, *, samples: int = 50) -> Handles:
+    """Rectify one line and leave every other handle as it is (the paper's "rectify current line").
+
+    The line at ``index`` is placed by the least squares of this module with every other
+    handle held where its map puts it now, and gets the solved control points as explicit
+    ``targets``. Lines that were rectified before keep their current output: their solved
+    control points are written into the document as explicit targets too (a line that was
+    split at a crossing keeps ``rectify`` instead, and may move a little).
+
+    Parameters
+    ----------
+    handles : Handles
+    index : int
+        Position of a line handle in ``handles.handles``.
+    samples : int
+        Samples per line in the relative-position terms.
+
+    Returns
+    -------
+    Handles
+        A new document; ``handles`` is not changed.
+    """
+    from dataclasses import replace
+
+    from .constraints import build_constraints
+
+    items = list(handles.handles)
+    if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not -len(items) <= index < len(items):
+        raise IndexError(f"handles[{index}]: there are {len(items)} handles")
+    index = int(index) % len(items)
+    if not isinstance(items[index], LineHandle):
+        raise ValueError(f"handles[{index}] is a {items[index].kind} handle, not a line")
+    current = build_constraints(handles, samples=samples)
+    pieces: dict[int, list[Moebius]] = {}
+    for control in current.controls:
+        pieces.setdefault(control.handle, []).append(control.moebius)
+    for i, h in enumerate(items):  # freeze the other lines where they are now
+        if i != index and isinstance(h, LineHandle) and h.targets is None and h.rectify and len(pieces[i]) == 1:
+            items[i] = replace(h, rectify=False, targets=_as_targets(pieces[i][0](h.control_points())))
+    frozen = [replace(h, rectify=False) if isinstance(h, LineHandle) and i != index else h for i, h in enumerate(items)]
+    line = replace(items[index], rectify=True, targets=None)
+    frozen[index] = line
+    alone = build_constraints(replace(handles, handles=tuple(frozen), options=replace(handles.options, rectify="all")), samples=samples)
+    maps = [c.moebius for c in alone.controls if c.handle == index]
+    if len(maps) == 1:  # not split by a crossing: write its solved control points
+        line = replace(line, rectify=False, targets=_as_targets(maps[0](line.control_points())))
+    items[index] = line
+    return replace(handles, handles=tuple(items))
+
+
+def _as_targets(points: NDArray[np.float64]) -> tuple[tuple[float, float], ...]:
+    return tuple((float(lon), float(lat)) for lon, lat in points)
