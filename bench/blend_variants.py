@@ -22,7 +22,9 @@ four inverse maps are evaluated in double precision (``blended_inverse``):
 
 Per variant: over the lines, median and max of ``line_straightness`` (best fit, px at 2048)
 and of its excess over the line's own Möbius map alone; lines the map does not show whole
-are counted as NaN; the fold-over area (% of the sphere); the conformal distortion's mean
+are counted as NaN, and lines of which some sample is found in a fold-over are counted
+(``in fold``: there the input is shown twice and :func:`~omniwidget.core.quality.forward_points`
+may find the other copy, so the figure measures the fold, not a bent line); the fold-over area (% of the sphere); the conformal distortion's mean
 and p99 (within 80 degrees latitude); and, against ``ours``, the area-weighted mean and the
 max of ``|Δlat|`` and the mean shift towards the equator (``|lat_ours| - |lat|``), degrees.
 Nothing is asserted; the exit status is 0 whatever the figures.
@@ -49,7 +51,7 @@ from omniwidget.core.blend import blended_inverse, grid_pixel_weights, mesh_pixe
 from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle  # noqa: E402
 from omniwidget.core.locate import locate_grid  # noqa: E402
 from omniwidget.core.pipeline import Result, warp  # noqa: E402
-from omniwidget.core.quality import conformal_distortion, fold_over, line_straightness, straightness  # noqa: E402
+from omniwidget.core.quality import conformal_distortion, fold_over, forward_points, line_straightness, straightness  # noqa: E402
 from omniwidget.core.scenes import mark_lines, synthetic_room  # noqa: E402
 from omniwidget.core.warping import inverse_lonlat  # noqa: E402
 
@@ -98,7 +100,12 @@ def variant_maps(result: Result, grid: int) -> dict[str, NDArray[np.float64]]:
 
 def measure(result: Result, inverse: NDArray[np.float64], ours: NDArray[np.float64], own: NDArray[np.float64]) -> dict[str, object]:
     """Line straightness and excess (per line), fold-over, distortion, latitude shift against ``ours``."""
-    lines = np.array([line_straightness(inverse, samples, width=W) for _, samples in result.constraints.lines])
+    samples = [s for _, s in result.constraints.lines]
+    lines = np.array([line_straightness(inverse, s, width=W) for s in samples])
+    folds = fold_over(inverse)
+    found = [coords.lonlat_to_px(forward_points(inverse, s), W) for s in samples]
+    px = [np.round(f[np.isfinite(f).all(axis=1)]).astype(int) for f in found]
+    in_fold = sum(bool(np.any(folds.mask[np.clip(p[:, 1], 0, W // 2 - 1), p[:, 0] % W])) for p in px)
     distortion = conformal_distortion(inverse)
     area = np.broadcast_to(np.cos(np.radians(coords.grid_lonlat(W)[1]))[:, None], inverse.shape[:2])
     dlat = inverse[..., 1] - ours[..., 1]
@@ -106,7 +113,8 @@ def measure(result: Result, inverse: NDArray[np.float64], ours: NDArray[np.float
     return {
         "lines": lines,
         "excess": lines - own,
-        "fold": 100 * fold_over(inverse).area,
+        "in_fold": int(in_fold),
+        "fold": 100 * folds.area,
         "cd": (distortion.mean, distortion.p99),
         "dlat": (np.sum(np.abs(dlat) * area) / area.sum(), np.abs(dlat).max(), np.sum(towards * area) / area.sum()),
     }
@@ -117,7 +125,7 @@ def _med_max(x: NDArray) -> tuple[float, float]:
 
 
 HEADER = (
-    f"  {'variant':<8}{'straight med':>13}{'max':>7}{'excess med':>11}{'max':>7}{'NaN':>4}"
+    f"  {'variant':<8}{'straight med':>13}{'max':>7}{'excess med':>11}{'max':>7}{'NaN':>4}{'in fold':>8}"
     f"{'fold %':>9}{'CD mean':>9}{'CD p99':>8}{'|dlat| mean':>12}{'max':>7}{'to eq':>8}"
 )
 
@@ -131,7 +139,7 @@ def report(name: str, result: Result, stats: dict[str, dict[str, object]]) -> No
         nan = int(np.isnan(s["lines"]).sum())
         d_mean, d_max, to_eq = s["dlat"]
         print(
-            f"  {variant:<8}{sm:13.3f}{sx:7.2f}{em:11.3f}{ex:7.2f}{nan:4d}{s['fold']:9.4f}{s['cd'][0]:9.4f}{s['cd'][1]:8.3f}"
+            f"  {variant:<8}{sm:13.3f}{sx:7.2f}{em:11.3f}{ex:7.2f}{nan:4d}{s['in_fold']:8d}{s['fold']:9.4f}{s['cd'][0]:9.4f}{s['cd'][1]:8.3f}"
             f"{d_mean:12.4f}{d_max:7.3f}{to_eq:8.4f}"
         )
 
@@ -147,8 +155,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"blend variants at {W} x {W // 2}, weight grid {args.grid} x {args.grid // 2}; Python {sys.version.split()[0]}, ", end="")
     print(f"numpy {np.__version__}, {os.cpu_count()} CPUs")
     print("straightness: best-fit px at 2048; excess: over the line's own Möbius map; NaN: lines not shown whole")
+    print("in fold: lines with a sample found in a fold-over (the input shown twice: the figure may measure the other copy)")
     print("fold: % of sphere; CD: conformal distortion (|lat| <= 80); dlat vs ours, degrees, area-weighted; to eq: mean |lat| lost")
-    pooled: dict[str, dict[str, list]] = {v: {"lines": [], "excess": [], "fold": []} for v in VARIANTS}
+    pooled: dict[str, dict[str, list]] = {v: {"lines": [], "excess": [], "fold": [], "in_fold": []} for v in VARIANTS}
     for name in args.scenes:
         clock = time.perf_counter()
         result = build(*SCENES[name])
@@ -164,14 +173,17 @@ def main(argv: list[str] | None = None) -> int:
             for key in ("lines", "excess"):
                 pooled[v][key].extend(stats[v][key])
             pooled[v]["fold"].append(stats[v]["fold"])
+            pooled[v]["in_fold"].append(stats[v]["in_fold"])
     if not pooled["ours"]["fold"]:
         return 0
     print(f"\n== all {len(pooled['ours']['lines'])} line pieces of {len(pooled['ours']['fold'])} scenes ==")
-    print(f"  {'variant':<8}{'straight med':>13}{'worst':>8}{'excess med':>11}{'worst':>8}{'NaN':>4}{'fold % max':>12}")
+    print(f"  {'variant':<8}{'straight med':>13}{'worst':>8}{'excess med':>11}{'worst':>8}{'NaN':>4}{'in fold':>8}{'fold % max':>12}")
     for v in VARIANTS:
         lines, excess = np.array(pooled[v]["lines"]), np.array(pooled[v]["excess"])
         (sm, sx), (em, ex) = _med_max(lines), _med_max(excess)
-        print(f"  {v:<8}{sm:13.3f}{sx:8.2f}{em:11.3f}{ex:8.2f}{int(np.isnan(lines).sum()):4d}{max(pooled[v]['fold']):12.4f}")
+        print(
+            f"  {v:<8}{sm:13.3f}{sx:8.2f}{em:11.3f}{ex:8.2f}{int(np.isnan(lines).sum()):4d}{sum(pooled[v]['in_fold']):8d}{max(pooled[v]['fold']):12.4f}"
+        )
     return 0
 
 

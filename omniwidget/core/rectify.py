@@ -203,6 +203,7 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
         raise ValueError(f"samples must be a whole number of at least 2, got {samples!r}")
     import scipy.sparse as sp
     from scipy.linalg import cho_factor, cho_solve
+    from scipy.spatial import cKDTree
 
     var, known, n = _slots(bones)
     t = np.linspace(0.0, 1.0, samples)
@@ -248,20 +249,21 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
         return [(v0, sign * (1 - tt) * is_free), (v2, sign * tt * is_free)], sign * const
 
     rows = _Rows()
-    for k in range(len(spans)):
-        span = spans[k]
-        mine = np.flatnonzero(owner_all == k)
-        if span <= 0 or not len(mine):
-            continue
-        diff = inputs_all[mine][:, None, :] - inputs_all[None, :, :]
-        diff[..., 0] = coords.wrap_lon(diff[..., 0])
-        r = np.hypot(diff[..., 0], diff[..., 1])
-        close = (r < span / 4) & (owner_all[None, :] != k) & (free_all[mine][:, None] | free_all[None, :])
-        i, j = np.nonzero(close)
-        if not len(i):
-            continue
-        w = RELATIVE_WEIGHT * (1 - 4 * r[i, j] / span) ** 4
-        entries_i, const_i = moved(mine[i], 1.0)
+    # every pair of samples of different handles closer than S_k / 4 (eq. 8), one of them solved for
+    span_all = np.asarray(spans)[owner_all]
+    plane = np.stack([np.mod(inputs_all[:, 0], 360.0), inputs_all[:, 1] + 90.0], axis=1)
+    tree = cKDTree(plane, boxsize=[360.0, 1e6])  # longitude periodic: the seam is nothing special
+    asking = np.flatnonzero(span_all > 0)
+    found = tree.query_ball_point(plane[asking], span_all[asking] / 4)
+    i = np.repeat(asking, [len(f) for f in found])
+    j = np.fromiter((x for f in found for x in f), dtype=np.int64, count=len(i))
+    keep = (owner_all[i] != owner_all[j]) & (free_all[i] | free_all[j])
+    i, j = i[keep], j[keep]
+    if len(i):
+        gap = inputs_all[i] - inputs_all[j]
+        r = np.hypot(coords.wrap_lon(gap[:, 0]), gap[:, 1])
+        w = RELATIVE_WEIGHT * np.clip(1 - 4 * r / span_all[i], 0.0, None) ** 4
+        entries_i, const_i = moved(i, 1.0)
         entries_j, const_j = moved(j, -1.0)
         rows.add(entries_i + entries_j, const_i + const_j, w)
     for k, b in enumerate(bones):
