@@ -3,7 +3,7 @@
 
 Usage::
 
-    python bench/blend_variants.py                      # all six scenes, about a minute or two
+    python bench/blend_variants.py                      # all six scenes, a few minutes on 2 cores
     python bench/blend_variants.py --scenes 1-6 3-12    # only these (names as printed)
     python bench/blend_variants.py --grid 300           # a finer weight grid for the authors' variants
 
@@ -21,12 +21,13 @@ four inverse maps are evaluated in double precision (``blended_inverse``):
 * ``authors``: both shortcuts (the paper's implementation).
 
 Per variant: over the lines, median and max of ``line_straightness`` (best fit, px at 2048)
-and of its excess over the line's own Möbius map alone; lines the map does not show whole
-are counted as NaN, and lines of which some sample is found in a fold-over are counted
-(``in fold``: there the input is shown twice and :func:`~omniwidget.core.quality.forward_points`
-may find the other copy, so the figure measures the fold, not a bent line); the fold-over area (% of the sphere); the conformal distortion's mean
-and p99 (within 80 degrees latitude); and, against ``ours``, the area-weighted mean and the
-max of ``|Δlat|`` and the mean shift towards the equator (``|lat_ours| - |lat|``), degrees.
+and of its excess over the line's own Möbius map alone; the lines the map does not show
+whole (NaN, left out of the medians) and those with a sample found in a fold-over (``in
+fold``: the input is shown twice there and :func:`~omniwidget.core.quality.forward_points`
+may find the other copy, so the figure measures the fold, not a bent line); the fold-over
+area (% of the sphere); the conformal distortion's mean and p99 (within 80 degrees
+latitude); and, against ``ours``, the area-weighted mean and the max of ``|Δlat|`` and the
+mean shift towards the equator (``|lat_ours| - |lat|``), degrees.
 Nothing is asserted; the exit status is 0 whatever the figures.
 """
 

@@ -127,3 +127,19 @@ def test_bad_maps_are_refused_with_where_they_are_bad():
         coverage(identity_map(64), cells=7)
     with pytest.raises(ValueError, match="fit"):
         straightness([[0, 0], [1, 1]], 360, fit="mean")
+
+
+def test_fold_signs_from_the_plane_agree_with_the_spheres_jacobians():
+    from omniwidget.core.quality import local_jacobians
+
+    grid = identity_map(512)
+    swirl = grid.copy()  # squeezed past itself around the seam, in a band of latitudes
+    amplitude = 120 * np.exp(-(((grid[..., 1] - 20) / 15) ** 2))
+    swirl[..., 0] = coords.wrap_lon(grid[..., 0] - amplitude * np.sin(np.radians(grid[..., 0] - 180)))
+    folds = fold_over(swirl)
+    assert 0 < folds.area < 0.5
+    assert np.array_equal(fold_over(swirl.astype(np.float32)).mask, folds.mask)
+    jac = local_jacobians(swirl)
+    det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
+    clear = np.abs(det) > 1e-3  # away from the fold's edges, where the sign is a matter of rounding
+    assert np.array_equal((det <= 0)[clear], folds.mask[1:-1][clear])

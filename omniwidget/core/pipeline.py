@@ -281,7 +281,8 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
     lap("blend")
     out = remap(pad_panorama(image), coordinates, order)
     lap("resampling")
-    folds = fold_over(coords.px_to_lonlat(coordinates - PAD, image.shape[1]))
+    step = np.float32(360.0 / image.shape[1])  # back to [lon, lat], in float32 (enough for the signs)
+    folds = fold_over((coordinates - np.float32(PAD - 0.5)) * (step * np.array([1, -1], np.float32)) + np.array([-180, 90], np.float32))
     if folds.area >= FOLD_WARNING_AREA:
         at = interpolate(weights, mesh.faces, face[folds.mask], bary[folds.mask])
         problems.append(_fold_warning(handles, constraints.controls, at, folds.area))
