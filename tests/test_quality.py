@@ -70,6 +70,8 @@ def test_forward_points_invert_a_moebius_map(rng, width):
     assert np.all(np.isfinite(got[inside]))
     error = coords.angular_distance(got[inside], expected[inside]) * width / 360
     assert error.max() < 0.01, error.max()
+    started = forward_points(moebius_map(m, width), points[inside], start=expected[inside] + [0.4, -0.3])
+    assert coords.angular_distance(started, expected[inside]).max() * width / 360 < 0.01
 
 
 def test_points_the_output_does_not_show_are_nan_and_coverage_counts_them():

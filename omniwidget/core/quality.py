@@ -273,7 +273,9 @@ def _bilinear(src: NDArray[np.float64], x: NDArray, y: NDArray) -> tuple[NDArray
     return value, d_x, d_y
 
 
-def forward_points(inverse_map: ArrayLike, lonlat: ArrayLike, *, iterations: int = 12, tolerance: float = 1e-3) -> NDArray[np.float64]:
+def forward_points(
+    inverse_map: ArrayLike, lonlat: ArrayLike, *, start: ArrayLike | None = None, iterations: int = 12, tolerance: float = 1e-3
+) -> NDArray[np.float64]:
     """Where input positions land in the output: the inverse map solved for them.
 
     Each position starts at the output pixel (of a grid every ``W / 512`` pixels) whose
@@ -286,6 +288,11 @@ def forward_points(inverse_map: ArrayLike, lonlat: ArrayLike, *, iterations: int
         See :func:`local_jacobians`.
     lonlat : array_like, shape (n, 2)
         Input ``[lon, lat]`` in degrees.
+    start : array_like, shape (n, 2), optional
+        Output ``[lon, lat]`` to start from, for example where one map alone puts the points.
+        Where the map folds, the input is shown more than once and the search finds the
+        copy nearest its start: without ``start``, the output pixel whose source is
+        nearest, which may be the wrong copy.
     iterations : int
         Newton steps.
     tolerance : float
@@ -306,10 +313,13 @@ def forward_points(inverse_map: ArrayLike, lonlat: ArrayLike, *, iterations: int
     targets = coords.lonlat_to_xyz(lonlat).reshape(-1, 3)
     src = coords.lonlat_to_xyz(m)
     stride = max(1, width // 512)
-    coarse = src[::stride, ::stride]
-    _, nearest = cKDTree(coarse.reshape(-1, 3)).query(targets)
-    row, col = np.divmod(nearest, coarse.shape[1])
-    x, y = (col * stride).astype(np.float64), (row * stride).astype(np.float64)
+    if start is None:
+        coarse = src[::stride, ::stride]
+        _, nearest = cKDTree(coarse.reshape(-1, 3)).query(targets)
+        row, col = np.divmod(nearest, coarse.shape[1])
+        x, y = (col * stride).astype(np.float64), (row * stride).astype(np.float64)
+    else:
+        x, y = coords.lonlat_to_px(np.asarray(start, np.float64).reshape(-1, 2), width).T
     east, north = coords.local_frame(coords.xyz_to_lonlat(targets))
     for _ in range(iterations):
         value, d_x, d_y = _bilinear(src, x, y)
@@ -337,7 +347,7 @@ def forward_points(inverse_map: ArrayLike, lonlat: ArrayLike, *, iterations: int
     return out.reshape(np.shape(lonlat))
 
 
-def line_straightness(inverse_map: ArrayLike, samples: ArrayLike, width: int | None = None) -> float:
+def line_straightness(inverse_map: ArrayLike, samples: ArrayLike, width: int | None = None, start: ArrayLike | None = None) -> float:
     """How straight a line comes out: its output image's largest distance from its best straight fit.
 
     Parameters
@@ -348,6 +358,9 @@ def line_straightness(inverse_map: ArrayLike, samples: ArrayLike, width: int | N
         Input ``[lon, lat]`` along the line (for example ``coords.geodesic(start, end, t)``).
     width : int, optional
         Pixels are counted at this image width (default: the map's).
+    start : array_like, shape (s, 2), optional
+        Where to start looking for the samples in the output (see :func:`forward_points`):
+        give it (for example the line's own map applied to them) when the map may fold.
 
     Returns
     -------
@@ -355,7 +368,7 @@ def line_straightness(inverse_map: ArrayLike, samples: ArrayLike, width: int | N
         In pixels; NaN if the output does not show every sample.
     """
     m = _check_map(inverse_map)
-    out = forward_points(m, samples)
+    out = forward_points(m, samples, start=start)
     if not np.all(np.isfinite(out)):
         return float("nan")
     return straightness(out, width or m.shape[1], fit="best")
