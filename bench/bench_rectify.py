@@ -25,8 +25,6 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import numpy as np  # noqa: E402
-
 from omniwidget.core.constraints import build_constraints  # noqa: E402
 from omniwidget.core.handles import Handles, LineHandle  # noqa: E402
 from omniwidget.core.pipeline import warp  # noqa: E402
@@ -68,7 +66,6 @@ def main() -> None:
         print(f"  {stage:22s} {seconds:7.3f} s")
     print(f"  {'total':22s} {sum(result.timings.values()):7.3f} s; fold-over {100 * result.folds.area:.3f}% of the sphere")
     print(f"  {len(result.warnings)} warning(s)" + "".join(f"\n    - {w}" for w in result.warnings))
-    np.set_printoptions(precision=3)
 
 
 if __name__ == "__main__":

@@ -241,11 +241,10 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
         is_free = free_all[idx]
         k, tt = bone_of[idx], param_all[idx]
         v0, v2 = np.where(is_free, var[k, 0], -1), np.where(is_free, var[k, 2], -1)
-        base = np.where(is_free[:, None], (1 - tt)[:, None] * known[k, 0] + tt[:, None] * known[k, 2], 0.0)
-        const = np.where(is_free[:, None], base, disp_all[idx])  # free: x(=0 at known) + base - input
-        const = const.copy()
-        const[is_free] -= inputs_all[idx][is_free]
-        # a kept slot of a free bone (joined to a kept bone) sits in `known`, not in x
+        # free: the chord of its control points (x = 0 at `known`) minus the input sample; a
+        # slot joined to a kept bone has no unknown and sits in `known`. Kept: its displacement.
+        chord = (1 - tt)[:, None] * known[k, 0] + tt[:, None] * known[k, 2]
+        const = np.where(is_free[:, None], chord - inputs_all[idx], disp_all[idx])
         return [(v0, sign * (1 - tt) * is_free), (v2, sign * tt * is_free)], sign * const
 
     rows = _Rows()
