@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import coords
 from .constraints import SAMPLES, Constraints, Control, build_constraints
-from .handles import CageHandle, Handles, LineHandle, PointHandle
+from .handles import Handles
 from .moebius import Moebius
 from .quality import FoldOver, fold_over
 from .warping import (
@@ -209,8 +209,7 @@ def _fold_warning(handles: Handles, controls: tuple[Control, ...], pixel_weights
     """Name the handles whose weights are strong where the output folds, (pixels, k) weights."""
     strong = np.flatnonzero(pixel_weights.max(axis=0) >= 0.1)
     involved = sorted({controls[j].handle for j in strong})
-    kinds = {PointHandle: "point", LineHandle: "line", CageHandle: "cage"}
-    names = [f"handles[{i}] ({kinds[type(handles.handles[i])]})" for i in involved]
+    names = [f"handles[{i}] ({handles.handles[i].kind})" for i in involved]
     return (
         f"the warp folds over near {' and '.join(names)}: {100 * area:.3g}% of the sphere is shown turned over "
         "(Result.folds.mask shows where); their targets conflict, move them apart"
