@@ -10,7 +10,7 @@ import argparse
 import sys
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -71,8 +71,10 @@ def _check_output(path: Path, suffixes: Sequence[str], what: str) -> None:
         raise ImageError(f"{path}: the folder {path.parent} does not exist")
 
 
-def _warp_quietly(warp: Callable[..., Result], *args: Any, **kwargs: Any) -> Result:
+def _warp_quietly(*args: Any, **kwargs: Any) -> Result:
     """Run a warp; its conflict warnings go to stderr as one line each instead of Python warnings."""
+    from .core.pipeline import warp
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = warp(*args, **kwargs)
@@ -85,7 +87,6 @@ def _cmd_warp(args: argparse.Namespace) -> None:
     from .core.errors import ImageError
     from .core.handles import load_handles
     from .core.io import check_panorama, read_image, write_image
-    from .core.pipeline import warp
 
     if args.output.resolve() == args.input.resolve():
         raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
@@ -96,7 +97,7 @@ def _cmd_warp(args: argparse.Namespace) -> None:
         raise ImageError(f"--width {args.width}: the width must be even and at least 2")
     handles = load_handles(args.handles)
     image = check_panorama(read_image(args.input), str(args.input))
-    result = _warp_quietly(warp, image, handles, width=args.width, order=args.order)
+    result = _warp_quietly(image, handles, width=args.width, order=args.order)
     if args.map is not None:
         write_image(args.map, result.inverse_map())  # .npy: the float32 array as it is
     write_image(args.output, result.image)
@@ -108,7 +109,6 @@ def _cmd_demo(args: argparse.Namespace) -> None:
     from .core.draw import draw_handles
     from .core.handles import Handles, save_handles
     from .core.io import write_image
-    from .core.pipeline import warp
     from .data import sample_image
 
     out = args.output_dir
@@ -116,7 +116,7 @@ def _cmd_demo(args: argparse.Namespace) -> None:
     image = sample_image()
     handles = Handles.from_dict(DEMO_HANDLES)
     start = time.perf_counter()
-    result = _warp_quietly(warp, image, handles)
+    result = _warp_quietly(image, handles)
     seconds = time.perf_counter() - start
     before = draw_handles(image, handles, stage="input")
     after = draw_handles(result.image, handles, stage="output")

@@ -21,7 +21,8 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .bbw import _as_constraints, _as_mesh, _positive_int
+from ._checks import whole_number
+from .bbw import _as_constraints, _as_mesh
 
 __all__ = ["igl_bbw", "igl_version", "load_igl"]
 
@@ -95,7 +96,7 @@ def igl_bbw(V: ArrayLike, F: ArrayLike, b: ArrayLike, bc: ArrayLike, *, max_iter
     """
     v, f = _as_mesh(V, F)
     idx, values = _as_constraints(v.shape[0], b, bc)
-    max_iter = _positive_int(max_iter, "max_iter")
+    max_iter = whole_number(max_iter, "max_iter", 1)
     igl = load_igl()
     if hasattr(igl, "BBW"):  # libigl 2.2 - 2.5: a solver class with Eigen::MatrixXi / VectorXi arguments
         try:

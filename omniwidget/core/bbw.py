@@ -13,7 +13,6 @@ This module imports scipy: load it lazily from modules that ``import omniwidget`
 from __future__ import annotations
 
 import math
-import operator
 import os
 import time
 import warnings
@@ -26,6 +25,8 @@ import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, cKDTree
+
+from ._checks import whole_number
 
 __all__ = ["bbw", "bilaplacian", "cotangent_laplacian", "mass_matrix", "normalize_rows"]
 
@@ -104,18 +105,6 @@ def _as_constraints(n: int, b: ArrayLike, bc: ArrayLike) -> tuple[IntArray, Floa
     if values.min() < 0.0 or values.max() > 1.0:
         raise ValueError(f"bc must lie in [0, 1] like the weights, found values in [{values.min():g}, {values.max():g}]")
     return idx, np.ascontiguousarray(values)
-
-
-def _positive_int(value: int, name: str) -> int:
-    if isinstance(value, bool):
-        raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    try:
-        out = operator.index(value)
-    except TypeError:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}") from None
-    if out < 1:
-        raise ValueError(f"{name} must be a positive integer, got {out}")
-    return out
 
 
 # --- discrete operators --------------------------------------------------------------
@@ -772,9 +761,9 @@ def _bbw(
         raise ValueError(f"tol must be a number in (0, 1e-3], got {tol!r}") from None
     if not (0.0 < tol <= 1e-3):
         raise ValueError(f"tol must be a number in (0, 1e-3], got {tol!r}")
-    max_iter = _positive_int(max_iter, "max_iter")
+    max_iter = whole_number(max_iter, "max_iter", 1)
     k = values.shape[1]
-    workers = min(k, os.cpu_count() or 1) if workers is None else min(k, _positive_int(workers, "workers"))
+    workers = min(k, os.cpu_count() or 1) if workers is None else min(k, whole_number(workers, "workers", 1))
     n_comp, label = connected_components(_adjacency(n, f), directed=False)
     if n_comp > 1:
         missing = np.setdiff1d(np.arange(n_comp), label[idx])

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import coords
+from ._checks import whole_number
 from .handles import CageHandle, Handles, LineHandle, PointHandle
 from .moebius import Moebius
 from .rectify import Anchor, Bone, RectifySolution, solve_bones
@@ -182,8 +183,7 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     -------
     Constraints
     """
-    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 2:
-        raise ValueError(f"samples must be a whole number of at least 2, got {samples!r}")
+    samples = whole_number(samples, "samples", 2)
     t = np.linspace(0.0, 1.0, samples)
     controls: list[Control] = []
     rows: list[tuple[NDArray[np.float64], dict[int, float]]] = []  # (point, {control: weight})
@@ -272,8 +272,7 @@ def _rectify_all(handles: Handles, pieces: list[_Piece], joint_of: dict[tuple[in
         start, end = coords.xyz_to_lonlat(piece.start), coords.xyz_to_lonlat(piece.end)
         outputs = None
         if not free[k]:
-            m = piece.line.moebius() if piece.line.targets is not None else Moebius.identity()
-            outputs = m(coords.geodesic(start, end, t))
+            outputs = piece.line.moebius()(coords.geodesic(start, end, t))  # its targets, or the identity
         bones.append(Bone(tuple(start), tuple(end), free[k], (joint_of.get((k, 0)), joint_of.get((k, 1))), outputs))
     anchors = []
     for h in handles.handles:

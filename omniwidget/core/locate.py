@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import coords
+from ._checks import whole_number
 
 __all__ = ["DEGENERATE", "EDGE_TOLERANCE", "UNIT_TOLERANCE", "interpolate", "locate_grid", "locate_points"]
 
@@ -426,9 +427,7 @@ def locate_grid(vertices: ArrayLike, faces: ArrayLike, width: int) -> tuple[NDAr
     barycentric coordinates cost per-pixel work. Use :func:`interpolate` to turn them into
     per-pixel values.
     """
-    if isinstance(width, bool) or not isinstance(width, (int, np.integer)):
-        raise ValueError(f"width must be an integer, got {width!r}")
-    width = int(width)
+    width = whole_number(width, "width", 2, even=True)
     lon, lat = coords.grid_lonlat(width)
     mesh = _prepare(vertices, faces)
     height = width // 2

@@ -21,12 +21,13 @@ of :mod:`omniwidget.core.coords`); angles at the public boundary are in degrees.
 from __future__ import annotations
 
 import math
-import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from ._checks import whole_number
 
 __all__ = [
     "DEFAULT_THRESHOLD_EDGES",
@@ -84,18 +85,6 @@ _ICOSAHEDRON_FACES = np.array(
 
 
 # --- small helpers -------------------------------------------------------------------
-def _level(value: int, name: str) -> int:
-    if isinstance(value, bool):
-        raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
-    try:
-        level = operator.index(value)
-    except TypeError:
-        raise ValueError(f"{name} must be a non-negative integer, got {value!r}") from None
-    if level < 0:
-        raise ValueError(f"{name} must be a non-negative integer, got {level}")
-    return level
-
-
 def _normalize(p: FloatArray) -> FloatArray:
     return p / np.linalg.norm(p, axis=-1, keepdims=True)
 
@@ -190,7 +179,7 @@ def icosphere(level: int) -> tuple[FloatArray, IntArray]:
         Vertex indices, counter-clockwise seen from outside the sphere (the normal
         ``(b - a) x (c - a)`` points outwards).
     """
-    level = _level(level, "level")
+    level = whole_number(level, "level")
     splitter = _Splitter(_normalize(_ICOSAHEDRON_VERTICES))
     faces = _ICOSAHEDRON_FACES.copy()
     for _ in range(level):
@@ -221,8 +210,8 @@ def default_thresholds(base_level: int = 1, rounds: int = 4) -> tuple[float, ...
     tuple of float, length ``rounds``
         Angular distances in degrees (for ``base_level=1``: about 52, 26, 13 and 6.5).
     """
-    base_level = _level(base_level, "base_level")
-    rounds = _level(rounds, "rounds")
+    base_level = whole_number(base_level, "base_level")
+    rounds = whole_number(rounds, "rounds")
     # Edge lengths of an icosphere depend only on the level; level 0 + splits is cheap.
     h_base = math.degrees(_mean_edge_angle(*icosphere(base_level)))
     return tuple(DEFAULT_THRESHOLD_EDGES * h_base / 2.0**r for r in range(rounds))
@@ -430,8 +419,8 @@ def adaptive_mesh(
     >>> bool(np.all(mesh.vertices[mesh.sample_index] == [1.0, 0.0, 0.0]))
     True
     """
-    base_level = _level(base_level, "base_level")
-    rounds = _level(rounds, "rounds")
+    base_level = whole_number(base_level, "base_level")
+    rounds = whole_number(rounds, "rounds")
     samples = _samples(samples)
     thresholds = _thresholds(threshold, base_level, rounds)
 

@@ -159,7 +159,9 @@ class Result:
 
     @cached_property
     def _inverse_map(self) -> NDArray[np.float64]:
-        return inverse_lonlat(self.inverse, self.image.shape[1])
+        inverse = inverse_lonlat(self.inverse, self.image.shape[1])
+        inverse.flags.writeable = False  # handed out as it is (float64): nobody may spoil the cache
+        return inverse
 
     def inverse_map(self, dtype: type[np.floating] = np.float32) -> NDArray[np.floating]:
         """For each output pixel centre, the input ``[lon, lat]`` (degrees) it shows, (H, W, 2).

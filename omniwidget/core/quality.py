@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import coords
+from ._checks import whole_number
 
 __all__ = [
     "Distortion",
@@ -393,8 +394,7 @@ def coverage(inverse_map: ArrayLike, cells: int = 360) -> float:
     float
         Between 0 and 1, each cell weighted by its area.
     """
-    if isinstance(cells, bool) or not isinstance(cells, (int, np.integer)) or cells < 4 or cells % 2:
-        raise ValueError(f"cells must be an even whole number of at least 4, got {cells!r}")
+    cells = whole_number(cells, "cells", 4, even=True)
     m = _check_map(inverse_map)
     px = coords.lonlat_to_px(m.reshape(-1, 2), cells)
     col = np.floor(px[:, 0] + 0.5).astype(np.int64) % cells

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import coords
+from ._checks import whole_number
 from .handles import Handles, LineHandle
 from .moebius import Moebius
 
@@ -199,8 +200,7 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
     -------
     RectifySolution
     """
-    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 2:
-        raise ValueError(f"samples must be a whole number of at least 2, got {samples!r}")
+    samples = whole_number(samples, "samples", 2)
     import scipy.sparse as sp
     from scipy.linalg import cho_factor, cho_solve
     from scipy.spatial import cKDTree

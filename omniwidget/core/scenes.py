@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import coords
+from ._checks import whole_number
 
 __all__ = [
     "mark_lines",
@@ -405,7 +406,7 @@ def synthetic_room(
     Memory stays small at any width: rays are cast in blocks of rows of about
     ``2**16`` rays each.
     """
-    width = _integer("width", width, minimum=8)
+    width = whole_number(width, "width", 8)
     if width % 2:
         raise ValueError(f"width must be even (the height is width / 2), got {width}")
     size_ = _vector3("size", size)
@@ -423,7 +424,7 @@ def synthetic_room(
         grid = _positive("grid", grid)
         if grid <= line_width:
             raise ValueError(f"grid ({grid} m) must be larger than line_width ({line_width} m)")
-    supersample = _integer("supersample", supersample, minimum=1)
+    supersample = whole_number(supersample, "supersample", 1)
     noise = _finite("noise", noise)
     if noise < 0:
         raise ValueError(f"noise must be >= 0, got {noise}")
@@ -644,14 +645,6 @@ def _positive(name: str, value: object) -> float:
     if value <= 0:
         raise ValueError(f"{name} must be > 0, got {value}")
     return value
-
-
-def _integer(name: str, value: object, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
-        raise ValueError(f"{name} must be an integer, got {value!r}")
-    if value < minimum:
-        raise ValueError(f"{name} must be at least {minimum}, got {value}")
-    return int(value)
 
 
 def _vector3(name: str, value: object) -> FloatArray:

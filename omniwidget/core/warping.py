@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import coords
+from ._checks import whole_number
 from .errors import ImageError
 from .io import check_panorama
 from .moebius import Moebius
@@ -278,9 +279,7 @@ def warp_moebius(image: NDArray, moebius: Moebius, *, width: int | None = None, 
 def check_warp_arguments(image: NDArray, width: int | None, order: str) -> int:
     """Validate a warp's image, output width and order; returns the output width."""
     check_panorama(image)
-    width = image.shape[1] if width is None else width
-    if isinstance(width, bool) or not isinstance(width, (int, np.integer)) or width < 2 or width % 2:
-        raise ValueError(f"width must be an even whole number of at least 2, got {width!r}")
+    width = whole_number(image.shape[1] if width is None else width, "width", 2, even=True)
     if order not in ORDERS:
         raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
     return int(width)
