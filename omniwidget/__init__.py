@@ -1,8 +1,9 @@
 """omniwidget: straighten and edit 360° panoramas with blended Möbius transformations.
 
 The numerical core lives in :mod:`omniwidget.core` and needs only numpy, scipy and
-OpenCV; importing :mod:`omniwidget` loads nothing more. Positions at every public
-boundary are ``[lon, lat]`` in degrees (conventions: :mod:`omniwidget.core.coords`).
+OpenCV; importing :mod:`omniwidget` loads nothing more (the notebook editor,
+``omniwidget.Editor`` in :mod:`omniwidget.widget`, loads anywidget when first used).
+Positions at every public boundary are ``[lon, lat]`` in degrees (conventions: :mod:`omniwidget.core.coords`).
 
 Examples
 --------
@@ -36,9 +37,19 @@ from .core import (
 )
 from .data import sample_image, sample_path
 
+
+def __getattr__(name: str):  # noqa: ANN202 - the widgets load their stack only when asked for
+    if name == "Editor":
+        from .widget import Editor
+
+        return Editor
+    raise AttributeError(f"module 'omniwidget' has no attribute {name!r}")
+
+
 __all__ = [
     "BlendWarning",
     "CageHandle",
+    "Editor",
     "Handles",
     "HandlesError",
     "ImageError",

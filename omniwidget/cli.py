@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -75,9 +74,7 @@ def _warp_quietly(*args: Any, **kwargs: Any) -> Result:
     """Run a warp; its conflict warnings go to stderr as one line each instead of Python warnings."""
     from .core.pipeline import warp
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = warp(*args, **kwargs)
+    result = warp(*args, warn=False, **kwargs)
     for message in result.warnings:
         print(f"omniwidget: warning: {message}", file=sys.stderr)
     return result

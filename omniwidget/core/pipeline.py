@@ -218,7 +218,9 @@ def _fold_warning(handles: Handles, controls: tuple[Control, ...], pixel_weights
     )
 
 
-def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: Order = "bilinear", samples: int = SAMPLES) -> Result:
+def warp(
+    image: NDArray, handles: Handles, *, width: int | None = None, order: Order = "bilinear", samples: int = SAMPLES, warn: bool = True
+) -> Result:
     """Warp a panorama by any number of handles (the paper's method).
 
     One map for everything (no handles, one point or line, handles that do not move) is
@@ -235,6 +237,9 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
     order : {"nearest", "bilinear", "bicubic"}
     samples : int
         Points per line and cage edge in the boundary conditions (the paper's 50).
+    warn : bool
+        Issue conflicts as :class:`BlendWarning`; they are in ``Result.warnings`` either way
+        (the command line and the editor show them themselves).
 
     Returns
     -------
@@ -289,7 +294,7 @@ def warp(image: NDArray, handles: Handles, *, width: int | None = None, order: O
         problems.append(_fold_warning(handles, constraints.controls, at, folds.area))
     lap("fold check")
     inverse = blended_inverse(inverses, mesh_pixel_weights(mesh.faces, weights, face, bary, np.float64), precision="double")
-    for p in problems:
+    for p in problems if warn else ():
         warnings.warn(p, BlendWarning, stacklevel=2)
     return Result(
         out, handles, constraints, mesh.vertices, mesh.faces, b, bc, weights, inverse, timings, tuple(problems), image.shape[1], folds

@@ -1,0 +1,899 @@
+// omniwidget editor: the front end of omniwidget.widget.Editor, a plain ES module that
+// anywidget loads as it is (no build step).
+//
+// Everything the browser tells the kernel is in [lon, lat] degrees, the conventions of
+// omniwidget/core/coords.py: longitude in [-180, 180) growing to the right, latitude in
+// [-90, 90] growing upwards, unit vector (cos lat cos lon, cos lat sin lon, sin lat),
+// east (-sin lon, cos lon, 0). On screen the panorama's width is `k` CSS pixels and its
+// left edge (lon = -180) is at `tx`; it repeats every `k` pixels, so handles and drags
+// wrap across the ±180° seam.
+//
+// Drags happen here at display frame rate; only their end reaches the kernel, as a new
+// handles document or a command ({op: ...}) the kernel applies (undo, rectify, arrows).
+
+const DEG = Math.PI / 180;
+const ARROW_LENGTH = 0.3; // radians from a point's centre to its arrow tips (handles.ARROW_LENGTH)
+const HIT = 9; // px: how close a click must be to a control point
+const HIT_EDGE = 6; // px: ... to a line or cage edge
+const MIN_LINE = 0.05; // degrees: shorter drags do not make a line
+const COLORS = { point: "#22c7ff", line: "#ff453a", cage: "#ffffff", selected: "#ffd60a", conflict: "#ff9f0a" };
+const TOOLS = [
+  ["select", "Select", "V", "select, move, pan"],
+  ["point", "Point", "P", "click to place a point handle"],
+  ["line", "Line", "L", "press, drag, release to draw a line"],
+  ["cage", "Cage", "C", "click the vertices; close on the first vertex, Enter or double-click"],
+];
+const STAGES = [
+  ["draw", "Draw", "D"],
+  ["transform", "Transform", "T"],
+  ["side", "Side by side", "B"],
+];
+const SHORTCUTS = [
+  ["V P L C", "select, point, line, cage tool"],
+  ["D T B", "draw stage, transform stage, side by side"],
+  ["Ctrl+Z / Ctrl+Shift+Z", "undo / redo (also Ctrl+Y)"],
+  ["Delete, Backspace", "delete the selected handle"],
+  ["Esc", "cancel the handle being drawn or the drag in progress"],
+  ["Enter, double-click", "close the cage being drawn"],
+  ["wheel", "zoom about the cursor"],
+  ["Space + drag, middle drag", "pan (wraps across the ±180° seam)"],
+  ["F", "fit the panorama to the view"],
+  ["A / S / R", "rectify all lines / rectify the selected line / reset the selected handle"],
+  ["?", "this help"],
+];
+
+// --- the sphere (mirrors omniwidget/core/coords.py) ------------------------------------
+const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+const scaled = (a, s) => [a[0] * s, a[1] * s, a[2] * s];
+const add = (a, b) => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+const norm = (a) => Math.hypot(a[0], a[1], a[2]);
+const unit = (a) => scaled(a, 1 / (norm(a) || 1));
+const clamp = (x, lo, hi) => Math.min(hi, Math.max(lo, x));
+
+function toXYZ([lon, lat]) {
+  const c = Math.cos(lat * DEG);
+  return [c * Math.cos(lon * DEG), c * Math.sin(lon * DEG), Math.sin(lat * DEG)];
+}
+
+function toLonLat(p) {
+  const [x, y, z] = unit(p);
+  const lon = Math.atan2(y, x) / DEG;
+  return [lon >= 180 ? lon - 360 : lon, Math.asin(clamp(z, -1, 1)) / DEG];
+}
+
+function wrapLon(lon) {
+  const w = ((((lon + 180) % 360) + 360) % 360) - 180;
+  return w;
+}
+
+function angle(a, b) {
+  return Math.atan2(norm(cross(a, b)), dot(a, b));
+}
+
+// The point `angle` radians from `lonlat` heading east (sign +1) or west (-1): handles._exp.
+function alongEast(lonlat, sign, ang) {
+  const p = toXYZ(lonlat);
+  const east = [-Math.sin(lonlat[0] * DEG), Math.cos(lonlat[0] * DEG), 0];
+  return toLonLat(add(scaled(p, Math.cos(ang)), scaled(east, sign * Math.sin(ang))));
+}
+
+// Rotate v about the unit axis by `ang` radians (Rodrigues).
+function rotate(v, axis, ang) {
+  const c = Math.cos(ang);
+  const s = Math.sin(ang);
+  return add(add(scaled(v, c), scaled(cross(axis, v), s)), scaled(axis, dot(axis, v) * (1 - c)));
+}
+
+// The rotation that carries `from` to `to` along their great circle, applied to [lon, lat] points.
+function carry(points, from, to) {
+  const a = toXYZ(from);
+  const b = toXYZ(to);
+  const axis = cross(a, b);
+  const n = norm(axis);
+  if (n < 1e-12) return points.map((p) => [...p]);
+  const ang = Math.atan2(n, dot(a, b));
+  return points.map((p) => toLonLat(rotate(toXYZ(p), scaled(axis, 1 / n), ang)));
+}
+
+// Samples of the circle through three points of the sphere, from a through b to c: a
+// geodesic when b is its midpoint, and a line's output (a Möbius image of a great circle).
+function circleArc(a, b, c) {
+  const [pa, pb, pc] = [toXYZ(a), toXYZ(b), toXYZ(c)];
+  const n = cross(sub(pb, pa), sub(pc, pa));
+  if (norm(n) < 1e-12) return [a, b, c];
+  const nu = unit(n);
+  const o = scaled(nu, dot(pa, nu));
+  const ra = sub(pa, o);
+  const r = norm(ra);
+  const e1 = scaled(ra, 1 / r);
+  const e2 = cross(nu, e1);
+  const at = (p) => {
+    const t = Math.atan2(dot(sub(p, o), e2), dot(sub(p, o), e1));
+    return t < 0 ? t + 2 * Math.PI : t;
+  };
+  const tb = at(pb);
+  let tc = at(pc);
+  if (tb > tc) tc -= 2 * Math.PI; // go the other way round, still through b
+  const steps = Math.max(2, Math.ceil((Math.abs(tc) * r) / (0.75 * DEG)));
+  const out = [];
+  for (let i = 0; i <= steps; i++) {
+    const t = (tc * i) / steps;
+    out.push(toLonLat(add(o, add(scaled(e1, r * Math.cos(t)), scaled(e2, r * Math.sin(t))))));
+  }
+  return out;
+}
+
+function geodesic(a, b) {
+  const pa = toXYZ(a);
+  const pb = toXYZ(b);
+  return circleArc(a, toLonLat(add(pa, pb)), b);
+}
+
+const copy = (value) => JSON.parse(JSON.stringify(value));
+
+// --- the handles' control points -------------------------------------------------------
+// Input positions (draw stage) come from the document; output positions from the kernel
+// (`outputs`, one list per handle), overridden locally while a drag is in progress.
+function inputPoints(h) {
+  if (h.kind === "point") return [h.position, alongEast(h.position, 1, ARROW_LENGTH), alongEast(h.position, -1, ARROW_LENGTH)];
+  if (h.kind === "line") return [h.start, toLonLat(add(toXYZ(h.start), toXYZ(h.end))), h.end];
+  return h.vertices;
+}
+
+function curves(h, pts) {
+  // Great-circle arcs (curved on the panorama) to draw for a handle whose control points are `pts`.
+  if (h.kind === "point") return [geodesic(pts[0], pts[1]), geodesic(pts[0], pts[2])];
+  if (h.kind === "line") return [circleArc(pts[0], pts[1], pts[2])];
+  return pts.map((p, i) => geodesic(p, pts[(i + 1) % pts.length]));
+}
+
+// --- the widget ---------------------------------------------------------------------------
+function el(tag, attrs = {}, ...children) {
+  const node = document.createElement(tag);
+  for (const [key, value] of Object.entries(attrs)) {
+    if (key === "class") node.className = value;
+    else if (key.startsWith("on")) node.addEventListener(key.slice(2), value);
+    else node.setAttribute(key, value);
+  }
+  for (const child of children) node.append(child);
+  return node;
+}
+
+async function decode(view, type) {
+  if (!view || view.byteLength === 0) return null;
+  return createImageBitmap(new Blob([view], { type }));
+}
+
+function render({ model, el: host }) {
+  const state = {
+    tool: "select",
+    view: null, // {k, tx, ty}
+    source: null,
+    preview: null,
+    folds: null,
+    showFolds: true,
+    split: false,
+    splitAt: 0.5,
+    drag: null, // a drag in progress
+    drawing: null, // a line or cage being drawn
+    localOutputs: null, // outputs as the last drag left them, until the kernel's arrive
+    space: false,
+    help: false,
+    released: null, // performance.now() of the last edit, for the latency figure
+    cursor: null,
+  };
+
+  const root = el("div", { class: "ow-editor", tabindex: "0", "data-lm-suppress-shortcuts": "true", "data-busy": "false", "data-generation": "0" });
+  const toolbar = el("div", { class: "ow-toolbar" });
+  const stageGroup = el("div", { class: "ow-group" });
+  for (const [name, label, key] of STAGES) {
+    stageGroup.append(el("button", { "data-stage": name, title: `${label} (${key})`, onclick: () => setStage(name) }, label));
+  }
+  const toolGroup = el("div", { class: "ow-group" });
+  for (const [name, label, key, what] of TOOLS) {
+    toolGroup.append(el("button", { "data-tool": name, title: `${label} (${key}): ${what}`, onclick: () => setTool(name) }, label));
+  }
+  const button = (action, label, title, onclick) => el("button", { "data-action": action, title, onclick }, label);
+  const editGroup = el(
+    "div",
+    { class: "ow-group" },
+    button("undo", "Undo", "Undo (Ctrl+Z)", () => command("undo")),
+    button("redo", "Redo", "Redo (Ctrl+Shift+Z)", () => command("redo")),
+    button("delete", "Delete", "Delete the selected handle (Delete)", () => deleteSelected()),
+  );
+  const solveGroup = el(
+    "div",
+    { class: "ow-group" },
+    button("rectify-all", "Rectify all lines", "Straighten every line together (A)", () => command("rectify_all")),
+    button("rectify-line", "Rectify selected line", "Straighten the selected line, hold the rest (S)", () => commandSelected("rectify_line")),
+    button("reset", "Reset selected", "Undo the selected handle's transformation (R)", () => commandSelected("reset")),
+  );
+  const fileInput = el("input", { type: "file", accept: ".json,application/json", style: "display:none" });
+  const viewGroup = el(
+    "div",
+    { class: "ow-group" },
+    button("fit", "Fit", "Fit the panorama to the view (F)", () => fit()),
+    button("split", "Split", "Compare: the input left of a slider, the result right of it", () => {
+      state.split = !state.split;
+      draw();
+    }),
+    button("folds", "Folds", "Show where the result folds over", () => {
+      state.showFolds = !state.showFolds;
+      draw();
+    }),
+  );
+  const fileGroup = el(
+    "div",
+    { class: "ow-group" },
+    button("save", "Save", "Write the handles file next to the notebook", () => command("save")),
+    button("download", "Download", "Download the handles file", () => download()),
+    button("load", "Load", "Load a handles file", () => fileInput.click()),
+    button("full", "Full size", "Compute the result at the panorama's full size", () => command("full")),
+    button("help", "?", "Keyboard shortcuts (?)", () => toggleHelp()),
+    fileInput,
+  );
+  const spinner = el("span", { class: "ow-spinner", title: "computing" });
+  toolbar.append(stageGroup, toolGroup, editGroup, solveGroup, viewGroup, fileGroup, spinner);
+
+  const panesBox = el("div", { class: "ow-panes" });
+  const panes = ["input", "result"].map((kind) => {
+    const canvas = el("canvas", { class: "ow-canvas", "data-pane": kind });
+    const label = el("div", { class: "ow-pane-label" }, kind === "input" ? "input: draw handles" : "result: move control points");
+    const box = el("div", { class: "ow-pane", "data-pane": kind }, canvas, label);
+    return { kind, canvas, box, ctx: canvas.getContext("2d"), w: 0, h: 0 };
+  });
+  panesBox.append(...panes.map((p) => p.box));
+  const message = el("div", { class: "ow-message" });
+  const cursorInfo = el("span", { class: "ow-cursor" });
+  const statusBar = el("div", { class: "ow-status" }, message, cursorInfo);
+  const helpBox = el(
+    "div",
+    { class: "ow-help", hidden: "" },
+    el("h3", {}, "Keyboard and mouse"),
+    el("table", {}, ...SHORTCUTS.map(([k, what]) => el("tr", {}, el("th", {}, k), el("td", {}, what)))),
+    el("p", {}, "Positions are [lon, lat] in degrees whatever the zoom. Draw on the input; move control points on the result."),
+  );
+  root.append(toolbar, panesBox, statusBar, helpBox);
+  host.append(root);
+
+  // --- model access ----------------------------------------------------------------------
+  const doc = () => model.get("handles") || { handles: [] };
+  const items = () => doc().handles || [];
+  const outputs = () => state.localOutputs || model.get("outputs") || [];
+  const selected = () => model.get("selected");
+  const status = () => model.get("status") || {};
+
+  function commit(handles, extra = {}) {
+    const next = { ...doc(), ...extra, handles };
+    if (JSON.stringify(next) === JSON.stringify(doc())) return;
+    state.released = performance.now();
+    model.set("handles", next);
+    model.save_changes();
+  }
+
+  function command(op, content = {}) {
+    state.released = performance.now();
+    model.send({ op, ...content });
+  }
+
+  function commandSelected(op) {
+    const i = selected();
+    if (i < 0 || i >= items().length) return showLocal("select a handle first");
+    if (op === "rectify_line" && items()[i].kind !== "line") return showLocal("the selected handle is not a line");
+    command(op, { index: i });
+  }
+
+  function select(i) {
+    if (selected() !== i) {
+      model.set("selected", i);
+      model.save_changes();
+    }
+  }
+
+  function deleteSelected() {
+    const i = selected();
+    if (i < 0 || i >= items().length) return;
+    const next = items().filter((_, j) => j !== i);
+    model.set("selected", -1);
+    commit(next);
+  }
+
+  function download() {
+    const blob = new Blob([JSON.stringify(doc(), null, 2) + "\n"], { type: "application/json" });
+    const a = el("a", { href: URL.createObjectURL(blob), download: "handles.json" });
+    a.click();
+    setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+  }
+
+  fileInput.addEventListener("change", async () => {
+    const file = fileInput.files && fileInput.files[0];
+    if (!file) return;
+    command("load", { name: file.name, text: await file.text() });
+    fileInput.value = "";
+  });
+
+  let localNote = "";
+  function showLocal(text) {
+    localNote = text;
+    updateStatus();
+  }
+
+  // --- layout and view --------------------------------------------------------------------
+  const visible = () => panes.filter((p) => model.get("stage") === "side" || (p.kind === "input") === (model.get("stage") === "draw"));
+
+  function layout() {
+    const shown = visible();
+    for (const p of panes) p.box.hidden = !shown.includes(p);
+    const width = Math.max(200, panesBox.clientWidth || root.clientWidth || 800);
+    const height = model.get("height");
+    const dpr = window.devicePixelRatio || 1;
+    for (const p of shown) {
+      p.w = Math.floor((width - (shown.length - 1) * 6) / shown.length);
+      p.h = height;
+      p.canvas.style.width = `${p.w}px`;
+      p.canvas.style.height = `${p.h}px`;
+      p.canvas.width = Math.round(p.w * dpr);
+      p.canvas.height = Math.round(p.h * dpr);
+      p.ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+    }
+    if (!state.view || state.fitted) fit();
+    else draw();
+  }
+
+  function fit() {
+    const p = visible()[0];
+    const k = Math.min(p.w || 800, 2 * (p.h || 400));
+    state.view = { k, tx: ((p.w || 800) - k) / 2, ty: ((p.h || 400) - k / 2) / 2 };
+    state.fitted = true;
+    draw();
+  }
+
+  const toScreen = ([lon, lat]) => {
+    const { k, tx, ty } = state.view;
+    return [tx + ((lon + 180) / 360) * k, ty + ((90 - lat) / 180) * (k / 2)];
+  };
+
+  function toLonLatAt(x, y) {
+    const { k, tx, ty } = state.view;
+    return [wrapLon(((x - tx) / k) * 360 - 180), clamp(90 - ((y - ty) / (k / 2)) * 180, -90, 90)];
+  }
+
+  // Screen x of `lonlat` in the copy of the panorama nearest to screen x `near`.
+  function nearestX(x, near) {
+    const k = state.view.k;
+    return x + Math.round((near - x) / k) * k;
+  }
+
+  function copies(p) {
+    const { k, tx } = state.view;
+    const out = [];
+    for (let j = Math.floor(-tx / k); j <= Math.floor((p.w - tx) / k); j++) out.push(j * k);
+    return out;
+  }
+
+  // --- drawing ----------------------------------------------------------------------------
+  function positions(i, kind) {
+    if (kind === "input") {
+      if (state.drag && state.drag.pane === "input" && state.drag.index === i) return state.drag.points;
+      return inputPoints(items()[i]);
+    }
+    if (state.drag && state.drag.pane === "result" && state.drag.index === i) return state.drag.points;
+    return outputs()[i] || inputPoints(items()[i]);
+  }
+
+  function strokePath(p, lonlats, offsets) {
+    if (lonlats.length < 2) return;
+    const pts = lonlats.map(toScreen);
+    for (let i = 1; i < pts.length; i++) pts[i][0] = nearestX(pts[i][0], pts[i - 1][0]); // continuous across the seam
+    const ctx = p.ctx;
+    for (const dx of offsets) {
+      ctx.beginPath();
+      ctx.moveTo(pts[0][0] + dx, pts[0][1]);
+      for (let i = 1; i < pts.length; i++) ctx.lineTo(pts[i][0] + dx, pts[i][1]);
+      ctx.stroke();
+    }
+  }
+
+  function dotAt(p, lonlat, offsets, radius, fill, shape = "circle") {
+    const [x, y] = toScreen(lonlat);
+    const ctx = p.ctx;
+    for (const dx of offsets) {
+      ctx.beginPath();
+      if (shape === "square") ctx.rect(x + dx - radius, y - radius, 2 * radius, 2 * radius);
+      else ctx.arc(x + dx, y, radius, 0, 2 * Math.PI);
+      ctx.fillStyle = fill;
+      ctx.fill();
+      ctx.stroke();
+    }
+  }
+
+  function drawImageCopies(p, image, offsets) {
+    const { k, ty } = state.view;
+    const tx = state.view.tx;
+    for (const dx of offsets) p.ctx.drawImage(image, tx + dx, ty, k, k / 2);
+  }
+
+  function drawPane(p) {
+    const ctx = p.ctx;
+    ctx.save();
+    ctx.fillStyle = "#1e1e1e";
+    ctx.fillRect(0, 0, p.w, p.h);
+    const offsets = copies(p);
+    const image = p.kind === "input" ? state.source : state.preview || state.source;
+    if (image) drawImageCopies(p, image, offsets);
+    if (p.kind === "result" && state.split && state.source) {
+      const at = state.splitAt * p.w;
+      ctx.save();
+      ctx.beginPath();
+      ctx.rect(0, 0, at, p.h);
+      ctx.clip();
+      drawImageCopies(p, state.source, offsets);
+      ctx.restore();
+      ctx.strokeStyle = "#ffd60a";
+      ctx.lineWidth = 2;
+      ctx.beginPath();
+      ctx.moveTo(at, 0);
+      ctx.lineTo(at, p.h);
+      ctx.stroke();
+    }
+    if (p.kind === "result" && state.showFolds && state.folds) drawImageCopies(p, state.folds, offsets);
+    const conflicts = new Set(status().conflicts || []);
+    const sel = selected();
+    items().forEach((h, i) => {
+      const pts = positions(i, p.kind);
+      const isSel = i === sel;
+      ctx.lineWidth = isSel ? 3 : 2;
+      ctx.strokeStyle = conflicts.has(i) ? COLORS.conflict : COLORS[h.kind];
+      ctx.setLineDash(conflicts.has(i) ? [6, 4] : []);
+      for (const c of curves(h, pts)) strokePath(p, c, offsets);
+      ctx.setLineDash([]);
+      ctx.lineWidth = 1.5;
+      ctx.strokeStyle = "#000";
+      const fill = isSel ? COLORS.selected : COLORS[h.kind];
+      pts.forEach((q, j) => {
+        const tip = h.kind === "point" && j > 0;
+        dotAt(p, q, offsets, tip ? 4 : 5, fill, tip ? "square" : "circle");
+      });
+    });
+    if (state.drawing && p.kind === "input") {
+      ctx.strokeStyle = COLORS.selected;
+      ctx.lineWidth = 2;
+      ctx.setLineDash([5, 4]);
+      const pts = state.drawing.points;
+      const ends = state.drawing.cursor ? [...pts, state.drawing.cursor] : pts;
+      for (let i = 1; i < ends.length; i++) strokePath(p, geodesic(ends[i - 1], ends[i]), offsets);
+      ctx.setLineDash([]);
+      ctx.strokeStyle = "#000";
+      pts.forEach((q) => dotAt(p, q, offsets, 5, COLORS.selected));
+    }
+    ctx.restore();
+    const { k, tx, ty } = state.view;
+    p.canvas.dataset.view = JSON.stringify({ x0: tx, y0: ty, w: k, h: k / 2 });
+  }
+
+  let frame = 0;
+  function draw() {
+    if (frame) return;
+    frame = requestAnimationFrame(() => {
+      frame = 0;
+      if (!state.view) return;
+      for (const p of visible()) drawPane(p);
+    });
+  }
+
+  function updateStatus() {
+    const s = status();
+    const busy = s.state === "busy";
+    root.dataset.busy = String(busy);
+    spinner.hidden = !busy;
+    const parts = [];
+    if (s.state === "error") parts.push(s.message);
+    else if (busy) parts.push("computing...");
+    else if (s.message) parts.push(`result ${s.message}`);
+    if (state.latency !== undefined && s.state === "idle") parts.push(`shown ${state.latency.toFixed(0)} ms after the edit`);
+    if (s.fold_area > 0) parts.push(`fold-over ${(100 * s.fold_area).toPrecision(2)}% of the sphere (magenta)`);
+    if (localNote) parts.push(localNote);
+    message.textContent = parts.join(" · ");
+    message.classList.toggle("ow-error", s.state === "error");
+    message.title = (s.warnings || []).join("\n");
+    for (const w of s.warnings || []) {
+      message.append(el("div", { class: "ow-warning" }, `⚠ ${w}`));
+    }
+    const history = model.get("history") || {};
+    toolbar.querySelector('[data-action="undo"]').disabled = !history.undo;
+    toolbar.querySelector('[data-action="redo"]').disabled = !history.redo;
+    const h = items()[selected()];
+    toolbar.querySelector('[data-action="rectify-line"]').disabled = !h || h.kind !== "line";
+    toolbar.querySelector('[data-action="reset"]').disabled = !h;
+    toolbar.querySelector('[data-action="delete"]').disabled = !h;
+    toolbar.querySelector('[data-action="split"]').classList.toggle("ow-on", state.split);
+    toolbar.querySelector('[data-action="folds"]').classList.toggle("ow-on", state.showFolds);
+    for (const b of toolbar.querySelectorAll("[data-tool]")) b.classList.toggle("ow-on", b.dataset.tool === state.tool);
+    for (const b of toolbar.querySelectorAll("[data-stage]")) b.classList.toggle("ow-on", b.dataset.stage === model.get("stage"));
+  }
+
+  function setTool(name) {
+    cancelDrawing();
+    state.tool = name;
+    if (name !== "select" && model.get("stage") === "transform") setStage("draw");
+    updateStatus();
+  }
+
+  function setStage(name) {
+    model.set("stage", name);
+    model.save_changes();
+  }
+
+  function toggleHelp() {
+    state.help = !state.help;
+    helpBox.hidden = !state.help;
+  }
+
+  // --- hit testing --------------------------------------------------------------------------
+  function hit(p, x, y) {
+    let best = null;
+    const order = items().map((_, i) => i);
+    const sel = selected();
+    if (sel >= 0) order.unshift(sel); // the selected handle's points first
+    for (const i of order) {
+      const pts = positions(i, p.kind);
+      pts.forEach((q, j) => {
+        const [qx, qy] = toScreen(q);
+        const d = Math.hypot(nearestX(qx, x) - x, qy - y);
+        if (d <= HIT && (!best || d < best.d - 0.5)) best = { index: i, part: j, d };
+      });
+      if (best && best.index === sel) return best;
+    }
+    if (best) return best;
+    for (const i of order) {
+      for (const c of curves(items()[i], positions(i, p.kind))) {
+        const s = c.map(toScreen);
+        for (let j = 1; j < s.length; j++) {
+          const ax = nearestX(s[j - 1][0], x);
+          const bx = ax + (nearestX(s[j][0], ax) - ax);
+          const d = segmentDistance(x, y, ax, s[j - 1][1], bx, s[j][1]);
+          if (d <= HIT_EDGE) return { index: i, part: -1, d };
+        }
+      }
+    }
+    return null;
+  }
+
+  function segmentDistance(px, py, ax, ay, bx, by) {
+    const dx = bx - ax;
+    const dy = by - ay;
+    const t = clamp(((px - ax) * dx + (py - ay) * dy) / (dx * dx + dy * dy || 1), 0, 1);
+    return Math.hypot(px - ax - t * dx, py - ay - t * dy);
+  }
+
+  // --- pointer ---------------------------------------------------------------------------------
+  const local = (p, e) => {
+    const r = p.canvas.getBoundingClientRect();
+    return [e.clientX - r.left, e.clientY - r.top];
+  };
+
+  function onDown(p, e) {
+    root.focus({ preventScroll: true });
+    const [x, y] = local(p, e);
+    const at = toLonLatAt(x, y);
+    p.canvas.setPointerCapture(e.pointerId);
+    if (e.button === 1 || state.space) {
+      state.drag = { type: "pan", x, y, view: { ...state.view } };
+      e.preventDefault();
+      return;
+    }
+    if (e.button !== 0) return;
+    if (p.kind === "result" && state.split && Math.abs(x - state.splitAt * p.w) < 6) {
+      state.drag = { type: "split", pane: p };
+      return;
+    }
+    if (p.kind === "input" && state.tool === "point") {
+      commit([...items(), { kind: "point", position: at, target: at, rotation: 0, scale: 1 }]);
+      select(items().length - 1);
+      return;
+    }
+    if (p.kind === "input" && state.tool === "line") {
+      state.drawing = { kind: "line", points: [at], cursor: at };
+      draw();
+      return;
+    }
+    if (p.kind === "input" && state.tool === "cage") {
+      cageClick(p, x, y, at, e.detail >= 2);
+      return;
+    }
+    const found = hit(p, x, y);
+    if (!found) {
+      select(-1);
+      state.drag = { type: "pan", x, y, view: { ...state.view } };
+      return;
+    }
+    select(found.index);
+    const h = items()[found.index];
+    state.drag = {
+      type: "move",
+      pane: p.kind,
+      index: found.index,
+      part: found.part,
+      grab: at,
+      original: copy(positions(found.index, p.kind)),
+      points: copy(positions(found.index, p.kind)),
+      kind: h.kind,
+      moved: false,
+    };
+  }
+
+  function onMove(p, e) {
+    const [x, y] = local(p, e);
+    const at = toLonLatAt(x, y);
+    state.cursor = at;
+    cursorInfo.textContent = `lon ${at[0].toFixed(2)}°, lat ${at[1].toFixed(2)}°`;
+    const d = state.drag;
+    if (d && d.type === "pan") {
+      state.view = { ...d.view, tx: d.view.tx + x - d.x, ty: d.view.ty + y - d.y };
+      state.fitted = false;
+      draw();
+      return;
+    }
+    if (d && d.type === "split") {
+      state.splitAt = clamp(x / p.w, 0, 1);
+      draw();
+      return;
+    }
+    if (d && d.type === "move") {
+      d.moved = true;
+      d.points = moved(d, at);
+      draw();
+      return;
+    }
+    if (state.drawing) {
+      state.drawing.cursor = at;
+      draw();
+    }
+  }
+
+  // Control points of the dragged handle with the grabbed part at `at`.
+  function moved(d, at) {
+    const pts = copy(d.original);
+    if (d.pane === "result" && d.kind === "point") {
+      if (d.part <= 0) return carry(d.original, d.part === 0 ? d.original[0] : d.grab, at); // the arrows ride along
+      const c = toXYZ(pts[0]);
+      const t = toXYZ(at);
+      pts[d.part] = at;
+      pts[3 - d.part] = toLonLat(sub(scaled(c, 2 * dot(c, t)), t)); // the opposite arrow follows
+      return pts;
+    }
+    if (d.pane === "input" && d.kind === "point") return carry(d.original, d.part === 0 ? d.original[0] : d.grab, at);
+    if (d.part === -1 || (d.pane === "input" && d.kind === "line" && d.part === 1)) return carry(d.original, d.grab, at);
+    pts[d.part] = at;
+    if (d.pane === "input" && d.kind === "line") pts[1] = toLonLat(add(toXYZ(pts[0]), toXYZ(pts[2])));
+    return pts;
+  }
+
+  function onUp(p, e) {
+    if (p.canvas.hasPointerCapture(e.pointerId)) p.canvas.releasePointerCapture(e.pointerId);
+    const d = state.drag;
+    state.drag = null;
+    if (state.drawing && state.drawing.kind === "line" && e.button === 0) {
+      const [start] = state.drawing.points;
+      const [x, y] = local(p, e);
+      const end = toLonLatAt(x, y);
+      state.drawing = null;
+      if (angle(toXYZ(start), toXYZ(end)) / DEG >= MIN_LINE) {
+        commit([...items(), { kind: "line", start, end, rectify: false }]);
+        select(items().length - 1);
+      }
+      draw();
+      return;
+    }
+    if (!d || d.type !== "move" || !d.moved) {
+      draw();
+      return;
+    }
+    finishMove(d);
+  }
+
+  function finishMove(d) {
+    const all = copy(items());
+    const h = all[d.index];
+    const pts = d.points;
+    if (d.pane === "input") {
+      if (h.kind === "point") {
+        const unmoved = !h.target || (h.target[0] === h.position[0] && h.target[1] === h.position[1]);
+        h.position = pts[0];
+        if (unmoved) h.target = pts[0];
+      } else if (h.kind === "line") {
+        h.start = pts[0];
+        h.end = pts[2];
+      } else {
+        h.vertices = pts;
+      }
+      commit(all);
+      return;
+    }
+    state.localOutputs = copy(outputs());
+    state.localOutputs[d.index] = pts;
+    if (h.kind === "point" && d.part > 0) {
+      command("arrow", { index: d.index, which: d.part === 1 ? "east" : "west", tip: pts[d.part] });
+      return;
+    }
+    if (h.kind === "point") h.target = pts[0];
+    else if (h.kind === "line") {
+      h.rectify = false;
+      h.targets = pts;
+    } else h.targets = pts;
+    commit(all);
+  }
+
+  function cageClick(p, x, y, at, double) {
+    const dr = state.drawing;
+    if (!dr) {
+      state.drawing = { kind: "cage", points: [at], cursor: at };
+      draw();
+      return;
+    }
+    const [fx, fy] = toScreen(dr.points[0]);
+    const onFirst = Math.hypot(nearestX(fx, x) - x, fy - y) <= HIT;
+    if (onFirst || double) {
+      closeCage();
+      return;
+    }
+    dr.points.push(at);
+    draw();
+  }
+
+  function closeCage() {
+    const dr = state.drawing;
+    if (!dr || dr.kind !== "cage") return;
+    state.drawing = null;
+    // a double-click's second click added a vertex on top of the last one: drop it
+    const pts = dr.points.filter((q, i) => i === 0 || angle(toXYZ(q), toXYZ(dr.points[i - 1])) > 1e-3);
+    if (pts.length >= 3) {
+      commit([...items(), { kind: "cage", vertices: pts }]);
+      select(items().length - 1);
+    } else showLocal("a cage needs at least three vertices");
+    draw();
+  }
+
+  function cancelDrawing() {
+    if (state.drawing) {
+      state.drawing = null;
+      draw();
+    }
+  }
+
+  function onWheel(p, e) {
+    e.preventDefault();
+    const [x, y] = local(p, e);
+    const { k, tx, ty } = state.view;
+    const fitK = Math.min(p.w, 2 * p.h);
+    const k2 = clamp(k * Math.exp(-e.deltaY * 0.0015), fitK * 0.5, fitK * 64);
+    const s = k2 / k;
+    state.view = { k: k2, tx: x - (x - tx) * s, ty: y - (y - ty) * s };
+    state.fitted = false;
+    draw();
+  }
+
+  for (const p of panes) {
+    p.canvas.addEventListener("pointerdown", (e) => onDown(p, e));
+    p.canvas.addEventListener("pointermove", (e) => onMove(p, e));
+    p.canvas.addEventListener("pointerup", (e) => onUp(p, e));
+    p.canvas.addEventListener("dblclick", (e) => {
+      if (state.drawing && state.drawing.kind === "cage") {
+        e.preventDefault();
+        closeCage();
+      }
+    });
+    p.canvas.addEventListener("wheel", (e) => onWheel(p, e), { passive: false });
+    p.canvas.addEventListener("contextmenu", (e) => e.preventDefault());
+    p.canvas.addEventListener("auxclick", (e) => e.preventDefault());
+  }
+
+  // --- keyboard -------------------------------------------------------------------------------
+  root.addEventListener("keydown", (e) => {
+    const key = e.key;
+    const mod = e.ctrlKey || e.metaKey;
+    let used = true;
+    if (mod && (key === "z" || key === "Z")) command(e.shiftKey ? "redo" : "undo");
+    else if (mod && (key === "y" || key === "Y")) command("redo");
+    else if (mod) used = false;
+    else if (key === " ") state.space = true;
+    else if (key === "Escape") {
+      if (state.drag && state.drag.type === "move") state.drag = null;
+      cancelDrawing();
+      if (state.help) toggleHelp();
+      draw();
+    } else if (key === "Enter") closeCage();
+    else if (key === "Delete" || key === "Backspace") deleteSelected();
+    else if (key === "f" || key === "F") fit();
+    else if (key === "?") toggleHelp();
+    else if (key === "a" || key === "A") command("rectify_all");
+    else if (key === "s" || key === "S") commandSelected("rectify_line");
+    else if (key === "r" || key === "R") commandSelected("reset");
+    else {
+      const tool = TOOLS.find(([, , k]) => k.toLowerCase() === key.toLowerCase());
+      const stage = STAGES.find(([, , k]) => k.toLowerCase() === key.toLowerCase());
+      if (tool) setTool(tool[0]);
+      else if (stage) setStage(stage[0]);
+      else used = false;
+    }
+    if (used) {
+      e.preventDefault();
+      e.stopPropagation(); // keep JupyterLab's own shortcuts out of the editor
+    }
+  });
+  root.addEventListener("keyup", (e) => {
+    if (e.key === " ") {
+      state.space = false;
+      e.stopPropagation();
+    }
+  });
+
+  // --- the kernel's changes -----------------------------------------------------------------
+  let generation = 0;
+  async function onImage(name) {
+    const bitmap = await decode(model.get(name), name === "folds" ? "image/png" : "image/jpeg");
+    state[name] = bitmap;
+    if (name === "source" && !state.view) layout();
+    draw();
+    if (name === "preview") {
+      generation += 1;
+      await new Promise((resolve) => requestAnimationFrame(resolve));
+      root.dataset.generation = String(generation);
+      if (state.released !== null && status().state !== "busy") {
+        state.latency = performance.now() - state.released;
+        root.dataset.latencyMs = state.latency.toFixed(1);
+        state.released = null;
+      }
+      updateStatus();
+    }
+  }
+  const listeners = [
+    ["change:source", () => onImage("source")],
+    ["change:preview", () => onImage("preview")],
+    ["change:folds", () => onImage("folds")],
+    ["change:handles", () => draw()],
+    [
+      "change:outputs",
+      () => {
+        state.localOutputs = null;
+        draw();
+      },
+    ],
+    [
+      "change:status",
+      () => {
+        localNote = "";
+        updateStatus();
+        draw();
+      },
+    ],
+    [
+      "change:selected",
+      () => {
+        updateStatus();
+        draw();
+      },
+    ],
+    ["change:history", () => updateStatus()],
+    ["change:stage", () => layout() || updateStatus()],
+    ["change:height", () => layout()],
+  ];
+  for (const [event, fn] of listeners) model.on(event, fn);
+
+  const resize = new ResizeObserver(() => layout());
+  resize.observe(panesBox);
+  onImage("source");
+  onImage("preview");
+  onImage("folds");
+  updateStatus();
+  layout();
+
+  return () => {
+    resize.disconnect();
+    for (const [event, fn] of listeners) model.off(event, fn);
+  };
+}
+
+export default { render };
