@@ -29,3 +29,23 @@ def offset(lonlat, bearing_deg: float, distance_deg: float) -> np.ndarray:
     east, north = coords.local_frame(lonlat)
     b, d = np.radians(bearing_deg), np.radians(distance_deg)
     return coords.xyz_to_lonlat(np.cos(d) * p + np.sin(d) * (np.cos(b) * east + np.sin(b) * north))
+
+
+@pytest.fixture(scope="session")
+def jupyter_server():
+    """One JupyterLab server for every real-browser test (tests/browser_harness.py)."""
+    from tests import browser_harness as bh
+
+    bh.require_browser()
+    with bh.JupyterServer(name="browser-tests") as server:
+        yield server
+
+
+@pytest.fixture(scope="session")
+def browser():
+    """Debian's headless Chromium driven by Playwright, shared by the real-browser tests."""
+    from tests import browser_harness as bh
+
+    bh.require_browser()
+    with bh.launch_browser() as browser:
+        yield browser

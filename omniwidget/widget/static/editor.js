@@ -38,6 +38,7 @@ const SHORTCUTS = [
   ["wheel", "zoom about the cursor"],
   ["Space + drag, middle drag", "pan (wraps across the ±180° seam)"],
   ["F", "fit the panorama to the view"],
+  ["H", "show or hide the handles"],
   ["A / S / R", "rectify all lines / rectify the selected line / reset the selected handle"],
   ["?", "this help"],
 ];
@@ -174,6 +175,7 @@ function render({ model, el: host }) {
     preview: null,
     folds: null,
     showFolds: true,
+    showHandles: true,
     split: false,
     splitAt: 0.5,
     drag: null, // a drag in progress
@@ -223,6 +225,7 @@ function render({ model, el: host }) {
       state.showFolds = !state.showFolds;
       draw();
     }),
+    button("handles", "Handles", "Show or hide the handles (H)", () => toggleHandles()),
   );
   const fileGroup = el(
     "div",
@@ -439,6 +442,24 @@ function render({ model, el: host }) {
       ctx.stroke();
     }
     if (p.kind === "result" && state.showFolds && state.folds) drawImageCopies(p, state.folds, offsets);
+    ctx.strokeStyle = "rgba(255, 255, 255, 0.5)"; // the ±180° seam between copies of the panorama
+    ctx.lineWidth = 1;
+    ctx.setLineDash([2, 4]);
+    for (const dx of offsets) {
+      ctx.beginPath();
+      ctx.moveTo(state.view.tx + dx, state.view.ty);
+      ctx.lineTo(state.view.tx + dx, state.view.ty + state.view.k / 2);
+      ctx.stroke();
+    }
+    ctx.setLineDash([]);
+    if (state.showHandles) drawHandles(p, offsets);
+    ctx.restore();
+    const { k, tx, ty } = state.view;
+    p.canvas.dataset.view = JSON.stringify({ x0: tx, y0: ty, w: k, h: k / 2 });
+  }
+
+  function drawHandles(p, offsets) {
+    const ctx = p.ctx;
     const conflicts = new Set(status().conflicts || []);
     const sel = selected();
     items().forEach((h, i) => {
@@ -468,9 +489,6 @@ function render({ model, el: host }) {
       ctx.strokeStyle = "#000";
       pts.forEach((q) => dotAt(p, q, offsets, 5, COLORS.selected));
     }
-    ctx.restore();
-    const { k, tx, ty } = state.view;
-    p.canvas.dataset.view = JSON.stringify({ x0: tx, y0: ty, w: k, h: k / 2 });
   }
 
   let frame = 0;
@@ -510,6 +528,7 @@ function render({ model, el: host }) {
     toolbar.querySelector('[data-action="delete"]').disabled = !h;
     toolbar.querySelector('[data-action="split"]').classList.toggle("ow-on", state.split);
     toolbar.querySelector('[data-action="folds"]').classList.toggle("ow-on", state.showFolds);
+    toolbar.querySelector('[data-action="handles"]').classList.toggle("ow-on", state.showHandles);
     for (const b of toolbar.querySelectorAll("[data-tool]")) b.classList.toggle("ow-on", b.dataset.tool === state.tool);
     for (const b of toolbar.querySelectorAll("[data-stage]")) b.classList.toggle("ow-on", b.dataset.stage === model.get("stage"));
   }
@@ -524,6 +543,12 @@ function render({ model, el: host }) {
   function setStage(name) {
     model.set("stage", name);
     model.save_changes();
+  }
+
+  function toggleHandles() {
+    state.showHandles = !state.showHandles;
+    updateStatus();
+    draw();
   }
 
   function toggleHelp() {
@@ -603,7 +628,7 @@ function render({ model, el: host }) {
       cageClick(p, x, y, at, e.detail >= 2);
       return;
     }
-    const found = hit(p, x, y);
+    const found = state.showHandles ? hit(p, x, y) : null;
     if (!found) {
       select(-1);
       state.drag = { type: "pan", x, y, view: { ...state.view } };
@@ -808,6 +833,7 @@ function render({ model, el: host }) {
     else if (key === "Delete" || key === "Backspace") deleteSelected();
     else if (key === "f" || key === "F") fit();
     else if (key === "?") toggleHelp();
+    else if (key === "h" || key === "H") toggleHandles();
     else if (key === "a" || key === "A") command("rectify_all");
     else if (key === "s" || key === "S") commandSelected("rectify_line");
     else if (key === "r" || key === "R") commandSelected("reset");
@@ -831,23 +857,34 @@ function render({ model, el: host }) {
   });
 
   // --- the kernel's changes -----------------------------------------------------------------
-  let generation = 0;
-  async function onImage(name) {
-    const bitmap = await decode(model.get(name), name === "folds" ? "image/png" : "image/jpeg");
-    state[name] = bitmap;
-    if (name === "source" && !state.view) layout();
+  const images = { source: null, preview: null, folds: null };
+  function onImage(name) {
+    images[name] = (async () => {
+      state[name] = await decode(model.get(name), name === "folds" ? "image/png" : "image/jpeg");
+      if (name === "source" && !state.view) layout();
+      draw();
+    })();
+  }
+
+  // A result is on screen once its image (when it changed) is decoded and drawn: then the
+  // root's data-generation names the edit it answers, and the last edit's latency is taken.
+  async function onStatus() {
+    localNote = "";
+    updateStatus();
     draw();
-    if (name === "preview") {
-      generation += 1;
-      await new Promise((resolve) => requestAnimationFrame(resolve));
-      root.dataset.generation = String(generation);
-      if (state.released !== null && status().state !== "busy") {
-        state.latency = performance.now() - state.released;
-        root.dataset.latencyMs = state.latency.toFixed(1);
-        state.released = null;
-      }
-      updateStatus();
+    const s = status();
+    if (s.state !== "idle") return;
+    await null; // an image changed by the same message has started decoding by now
+    await Promise.all([images.preview, images.folds]);
+    await new Promise((resolve) => requestAnimationFrame(resolve));
+    if (status() !== s) return; // superseded meanwhile
+    root.dataset.generation = String(s.generation);
+    if (state.released !== null) {
+      state.latency = performance.now() - state.released;
+      root.dataset.latencyMs = state.latency.toFixed(1);
+      state.released = null;
     }
+    updateStatus();
   }
   const listeners = [
     ["change:source", () => onImage("source")],
@@ -861,14 +898,7 @@ function render({ model, el: host }) {
         draw();
       },
     ],
-    [
-      "change:status",
-      () => {
-        localNote = "";
-        updateStatus();
-        draw();
-      },
-    ],
+    ["change:status", () => onStatus()],
     [
       "change:selected",
       () => {
@@ -877,7 +907,14 @@ function render({ model, el: host }) {
       },
     ],
     ["change:history", () => updateStatus()],
-    ["change:stage", () => layout() || updateStatus()],
+    [
+      "change:stage",
+      () => {
+        if (model.get("stage") === "transform") setTool("select"); // nothing is drawn on the result
+        layout();
+        updateStatus();
+      },
+    ],
     ["change:height", () => layout()],
   ];
   for (const [event, fn] of listeners) model.on(event, fn);
@@ -887,8 +924,8 @@ function render({ model, el: host }) {
   onImage("source");
   onImage("preview");
   onImage("folds");
-  updateStatus();
   layout();
+  onStatus();
 
   return () => {
     resize.disconnect();
