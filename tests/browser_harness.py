@@ -87,6 +87,8 @@ LAB_USER_SETTINGS: dict[str, dict[str, Any]] = {
     "@jupyterlab/apputils-extension/notification": {"fetchNews": "false", "checkForUpdates": False},
     # Attach every cell to the DOM so widgets in off-screen cells render deterministically.
     "@jupyterlab/notebook-extension/tracker": {"windowingMode": "none"},
+    # "Save Widget State Automatically" (off by default): saved notebooks keep widget state.
+    "@jupyter-widgets/jupyterlab-manager/plugin": {"saveState": True},
 }
 
 #: Console errors that JupyterLab itself emits while running offline/headless and that

@@ -100,6 +100,7 @@ def test_state_from_the_front_end_is_applied_and_bad_state_is_reported_not_raise
 def test_outputs_follow_the_handles(editor):
     point = PointHandle(position=(20.0, 10.0), target=(30.0, 5.0), scale=2.0, rotation=30.0)
     editor.handles = doc(json.loads(ow.Handles([point]).to_json())["handles"][0], {**WINDOW_TOP, "rectify": True})
+    editor.wait()
     outputs = editor.outputs
     np.testing.assert_allclose(outputs[0], point.target_points(), atol=1e-8)
     # the rectified line: endpoints kept, middle at the lon/lat midpoint (one line: eq. 4)
@@ -172,6 +173,7 @@ def test_dragging_an_arrow_tip_turns_and_zooms_the_point(editor):
     expected = point.with_arrow_tip(tip, "east")
     assert moved.scale == pytest.approx(expected.scale) and moved.rotation == pytest.approx(expected.rotation)
     assert moved.scale != 1.0 and moved.rotation != 0.0
+    editor.wait()
     np.testing.assert_allclose(editor.outputs[0][1], tip, atol=1e-6)  # the tip is where it was dropped
 
 
@@ -277,3 +279,15 @@ def test_handles_survive_in_a_saved_notebooks_widget_state(editor, tmp_path):
     assert found
     again = Editor(ow.sample_image(), handles=found[0])
     assert again.handles == editor.handles
+
+
+def test_outputs_of_lines_split_at_a_crossing_come_from_their_pieces(editor):
+    a = {"kind": "line", "start": [-30.0, 0.0], "end": [30.0, 10.0]}
+    b = {"kind": "line", "start": [-10.0, -15.0], "end": [5.0, 25.0]}
+    editor.handles = doc(a, b)
+    editor.wait()
+    assert len(editor.preview_result.controls) == 4  # each line split in two at the crossing
+    for h, out in zip((a, b), editor.outputs, strict=True):
+        assert np.isfinite(out).all() and len(out) == 3
+        assert ow.core.coords.angular_distance(out[0], h["start"]) < 1.0
+        assert ow.core.coords.angular_distance(out[2], h["end"]) < 1.0

@@ -16,7 +16,9 @@ import cv2
 import numpy as np
 import pytest
 
+import omniwidget as ow
 from omniwidget.core import coords
+from omniwidget.widget import saved_handles
 from tests import browser_harness as bh
 
 pytestmark = pytest.mark.browser
@@ -222,4 +224,16 @@ def test_draw_rectify_turn_undo_in_jupyterlab(jupyter_server, browser):
         print(f"\nrelease to new image on screen, {count} handles at {status['width']} px: {figure['median_ms']:.0f} ms (median of 3)")
         assert status["width"] == 1024
         nb.screenshot("editor_scene")
+
+        # 9. the Save button writes the handles next to the notebook; saving the notebook keeps them in its widget state
+        nb.output('[data-action="save"]').click()
+        saved = jupyter_server.root / "hotel_room.handles.json"
+        bh.wait_until(saved.exists, timeout=20, description="the handles file written by the Save button")
+        assert ow.load_handles(saved).to_dict() == kernel_json(client, "ed.handles")
+        page.evaluate("() => window.jupyterapp.commands.execute('docmanager:save')")
+        bh.wait_until(
+            lambda: [d.to_dict() for d in saved_handles(jupyter_server.root / "editor.ipynb")] == [kernel_json(client, "ed.handles")],
+            timeout=20,
+            description="the handles in the saved notebook's widget state",
+        )
         assert nb.console_errors() == [], "\n".join(nb.console_errors())

@@ -21,7 +21,7 @@ import time
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import anywidget
 import numpy as np
@@ -32,6 +32,9 @@ from ..core import coords
 from ..core.errors import HandlesError, ImageError
 from ..core.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
 from ..core.io import check_panorama, read_image
+
+if TYPE_CHECKING:
+    from ..core.constraints import Constraints
 
 __all__ = ["DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "Editor", "saved_handles"]
 
@@ -148,16 +151,13 @@ def _fold_overlay(mask: NDArray[np.bool_]) -> bytes:
     return data.tobytes() if ok else b""
 
 
-def _output_points(doc: Handles) -> list[list[list[float]]]:
+def _output_points(doc: Handles, constraints: Constraints) -> list[list[list[float]]]:
     """For each handle, where its control points go in the output, ``[lon, lat]``.
 
     A point: centre, east and west arrow tips. A line: start, middle, end, placed by the
     rectify-all solve when the document asks for it (a line split at a crossing takes each
     control point from the piece nearest to it). A cage: its vertices' targets.
     """
-    from ..core.constraints import build_constraints
-
-    constraints = build_constraints(doc)
     pieces: dict[int, list[tuple[Any, NDArray]]] = {}
     for index, samples in constraints.lines:
         control = constraints.controls[index]
@@ -218,6 +218,10 @@ class Editor(anywidget.AnyWidget):
         by side.
     selected : int
         Index of the selected handle, -1 for none.
+    outputs : list
+        For each handle, where its control points are in the shown result, ``[lon, lat]``
+        (a point: centre and arrow tips; a line: start, middle, end; a cage: its vertices);
+        updated with the result image.
     status : dict
         ``state`` ("busy", "idle" or "error"), ``message``, ``warnings`` (conflicts and
         fold-overs, naming handles), ``conflicts`` (their indices), ``fold_area`` (share of
@@ -336,15 +340,10 @@ class Editor(anywidget.AnyWidget):
             self._restoring = False
 
     def _changed(self, doc: Handles) -> None:
-        """After every change of the handles: move the control points, recompute the preview."""
+        """After every change of the handles: recompute the preview (and the control points' outputs)."""
         self.history = {"undo": len(self._undo), "redo": len(self._redo)}
         if self.selected >= len(doc):
             self.selected = -1
-        try:
-            self.outputs = _output_points(doc)
-        except Exception as exc:  # noqa: BLE001 - shown in the widget, the handles stay
-            self._report_error(f"{type(exc).__name__}: {exc}")
-            return
         key = json.dumps(self.handles, sort_keys=True)
         self._schedule(lambda generation: self._compute(doc, key, generation, full=False))
 
@@ -381,6 +380,7 @@ class Editor(anywidget.AnyWidget):
             result = self._warp(doc, key, full)
             image = _jpeg(_display_rgb8(result.image, DISPLAY_WIDTH))
             folds = _fold_overlay(result.folds.mask)
+            outputs = _output_points(doc, result.constraints)
         except Exception as exc:  # noqa: BLE001 - shown in the widget, the handles stay
             with self._lock:
                 if generation == self._generation:
@@ -394,6 +394,7 @@ class Editor(anywidget.AnyWidget):
             with self.hold_sync():
                 self.preview = image
                 self.folds = folds
+                self.outputs = outputs
                 self.status = {
                     "state": "idle",
                     "message": f"{result.image.shape[1]} x {result.image.shape[0]} in {seconds:.2f} s",
