@@ -223,7 +223,9 @@ class Editor(anywidget.AnyWidget):
         (a point: centre and arrow tips; a line: start, middle, end; a cage: its vertices);
         updated with the result image.
     status : dict
-        ``state`` ("busy", "idle" or "error"), ``message``, ``warnings`` (conflicts and
+        ``state`` ("busy", "idle" or "error": the last computation failed), ``message``,
+        ``error`` (why the computation, or a command or edit since the last edit, failed; the
+        handles are kept whatever fails), ``warnings`` (conflicts and
         fold-overs, naming handles), ``conflicts`` (their indices), ``fold_area`` (share of
         the sphere shown turned over), ``seconds`` and ``width`` of the last computation.
 
@@ -280,7 +282,7 @@ class Editor(anywidget.AnyWidget):
         self._redo: list[dict] = []
         self._restoring = False
         self._ready = False  # the trait's first value is not an edit
-        self._preview_result: tuple[str, Any] | None = None
+        self._preview_result: Any = None  # the Result on screen
         self._full_result: tuple[str, Any] | None = None
         if isinstance(handles, (str, os.PathLike)) and not str(handles).lstrip().startswith("{"):
             handles = load_handles(handles)
@@ -344,35 +346,42 @@ class Editor(anywidget.AnyWidget):
         self.history = {"undo": len(self._undo), "redo": len(self._redo)}
         if self.selected >= len(doc):
             self.selected = -1
-        key = json.dumps(self.handles, sort_keys=True)
+        key = self._key()
         self._schedule(lambda generation: self._compute(doc, key, generation, full=False))
 
     def _schedule(self, job: Callable[[int], None]) -> None:
         with self._lock:
             self._generation += 1
             generation = self._generation
-            self.status = {**self.status, "state": "busy", "message": "computing..."}
+            self.status = {**self.status, "state": "busy", "message": "computing...", "error": ""}
         self._worker.submit(lambda: job(generation))
 
     def _report_error(self, message: str) -> None:
+        """Show a refused command or edit; it stays until the next edit (a result still on its way keeps it)."""
         with self._lock:
-            self._generation += 1  # a computation still running must not hide the message
-            self.status = {**self.status, "state": "error", "message": message}
+            self.status = {**self.status, "error": message}
 
     # --- computing -----------------------------------------------------------------------
+    def _key(self) -> str:
+        return json.dumps(self.handles, sort_keys=True)
+
+    def _full(self, doc: Handles, key: str, warn: bool) -> Any:
+        """The full-size result of ``doc`` (whose :meth:`_key` is ``key``), kept for the next ask."""
+        from ..core.pipeline import warp
+
+        cached = self._full_result
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        result = warp(self._image, doc, warn=warn)
+        self._full_result = (key, result)
+        return result
+
     def _warp(self, doc: Handles, key: str, full: bool) -> Any:
         from ..core.pipeline import warp
 
         if full or self._preview_width == self._image.shape[1]:
-            cached = self._full_result
-            if cached is not None and cached[0] == key:
-                return cached[1]
-            result = warp(self._image, doc, warn=False)
-            self._full_result = (key, result)
-        else:
-            result = warp(self._preview_source, doc, width=self._preview_width, warn=False)
-        self._preview_result = (key, result)
-        return result
+            return self._full(doc, key, warn=False)
+        return warp(self._preview_source, doc, width=self._preview_width, warn=False)
 
     def _compute(self, doc: Handles, key: str, generation: int, full: bool) -> None:
         start = time.perf_counter()
@@ -384,7 +393,8 @@ class Editor(anywidget.AnyWidget):
         except Exception as exc:  # noqa: BLE001 - shown in the widget, the handles stay
             with self._lock:
                 if generation == self._generation:
-                    self.status = {**self.status, "state": "error", "message": f"{type(exc).__name__}: {exc}"}
+                    message = f"{type(exc).__name__}: {exc}"
+                    self.status = {**self.status, "state": "error", "message": message, "error": message}
             return
         seconds = time.perf_counter() - start
         conflicts = sorted({int(i) for w in result.warnings for i in _HANDLE_NAME.findall(w)})
@@ -395,8 +405,10 @@ class Editor(anywidget.AnyWidget):
                 self.preview = image
                 self.folds = folds
                 self.outputs = outputs
+                self._preview_result = result
                 self.status = {
                     "state": "idle",
+                    "error": self.status.get("error", ""),
                     "message": f"{result.image.shape[1]} x {result.image.shape[0]} in {seconds:.2f} s",
                     "warnings": list(result.warnings),
                     "conflicts": conflicts,
@@ -421,24 +433,16 @@ class Editor(anywidget.AnyWidget):
     @property
     def result(self):  # noqa: ANN201 - Result, imported lazily
         """The full-resolution :class:`~omniwidget.Result` of the current handles (computed on demand)."""
-        from ..core.pipeline import warp
-
-        key = json.dumps(self.handles, sort_keys=True)
-        cached = self._full_result
-        if cached is not None and cached[0] == key:
-            return cached[1]
-        result = warp(self._image, self.document)
-        self._full_result = (key, result)
-        return result
+        return self._full(self.document, self._key(), warn=True)
 
     @property
     def preview_result(self):  # noqa: ANN201
         """The :class:`~omniwidget.Result` last shown in the widget, or None."""
-        return None if self._preview_result is None else self._preview_result[1]
+        return self._preview_result
 
     def compute_full(self) -> None:
         """Compute the full-resolution result in the background and show it."""
-        doc, key = self.document, json.dumps(self.handles, sort_keys=True)
+        doc, key = self.document, self._key()
         self._schedule(lambda generation: self._compute(doc, key, generation, full=True))
 
     # --- edits -----------------------------------------------------------------------------

@@ -65,8 +65,7 @@ function toLonLat(p) {
 }
 
 function wrapLon(lon) {
-  const w = ((((lon + 180) % 360) + 360) % 360) - 180;
-  return w;
+  return ((((lon + 180) % 360) + 360) % 360) - 180;
 }
 
 function angle(a, b) {
@@ -187,7 +186,13 @@ function render({ model, el: host }) {
     cursor: null,
   };
 
-  const root = el("div", { class: "ow-editor", tabindex: "0", "data-lm-suppress-shortcuts": "true", "data-busy": "false", "data-generation": "0" });
+  const root = el("div", {
+    class: "ow-editor",
+    tabindex: "0",
+    "data-lm-suppress-shortcuts": "true",
+    "data-busy": "false",
+    "data-generation": "0",
+  });
   const toolbar = el("div", { class: "ow-toolbar" });
   const stageGroup = el("div", { class: "ow-group" });
   for (const [name, label, key] of STAGES) {
@@ -209,7 +214,9 @@ function render({ model, el: host }) {
     "div",
     { class: "ow-group" },
     button("rectify-all", "Rectify all lines", "Straighten every line together (A)", () => command("rectify_all")),
-    button("rectify-line", "Rectify selected line", "Straighten the selected line, hold the rest (S)", () => commandSelected("rectify_line")),
+    button("rectify-line", "Rectify selected line", "Straighten the selected line, hold the rest (S)", () =>
+      commandSelected("rectify_line"),
+    ),
     button("reset", "Reset selected", "Undo the selected handle's transformation (R)", () => commandSelected("reset")),
   );
   const fileInput = el("input", { type: "file", accept: ".json,application/json", style: "display:none" });
@@ -268,8 +275,8 @@ function render({ model, el: host }) {
   const selected = () => model.get("selected");
   const status = () => model.get("status") || {};
 
-  function commit(handles, extra = {}) {
-    const next = { ...doc(), ...extra, handles };
+  function commit(handles) {
+    const next = { ...doc(), handles };
     if (JSON.stringify(next) === JSON.stringify(doc())) return;
     state.released = performance.now();
     model.set("handles", next);
@@ -277,7 +284,7 @@ function render({ model, el: host }) {
   }
 
   function command(op, content = {}) {
-    state.released = performance.now();
+    if (op !== "save") state.released = performance.now(); // every other command changes the result
     model.send({ op, ...content });
   }
 
@@ -507,14 +514,14 @@ function render({ model, el: host }) {
     root.dataset.busy = String(busy);
     spinner.hidden = !busy;
     const parts = [];
-    if (s.state === "error") parts.push(s.message);
-    else if (busy) parts.push("computing...");
-    else if (s.message) parts.push(`result ${s.message}`);
+    if (busy) parts.push("computing...");
+    else if (s.state === "idle" && s.message) parts.push(`result ${s.message}`);
+    if (s.error) parts.push(s.error);
     if (state.latency !== undefined && s.state === "idle") parts.push(`shown ${state.latency.toFixed(0)} ms after the edit`);
     if (s.fold_area > 0) parts.push(`fold-over ${(100 * s.fold_area).toPrecision(2)}% of the sphere (magenta)`);
     if (localNote) parts.push(localNote);
     message.textContent = parts.join(" · ");
-    message.classList.toggle("ow-error", s.state === "error");
+    message.classList.toggle("ow-error", Boolean(s.error));
     message.title = (s.warnings || []).join("\n");
     for (const w of s.warnings || []) {
       message.append(el("div", { class: "ow-warning" }, `⚠ ${w}`));
