@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import coords
 from .handles import CageHandle, Handles, LineHandle, PointHandle
 
-__all__ = ["draw_handles", "draw_polyline"]
+__all__ = ["display_rgb", "draw_handles", "draw_polyline"]
 
 RGB = tuple[int, int, int]
 COLOURS: dict[str, RGB] = {"line": (230, 40, 40), "point": (220, 40, 220), "cage": (255, 255, 255)}
@@ -68,7 +68,7 @@ def draw_handles(image: NDArray, handles: Handles, *, stage: str = "input", thic
     """
     if stage not in ("input", "output"):
         raise ValueError(f"stage must be 'input' or 'output', got {stage!r}")
-    canvas = _display_rgb(image)
+    canvas = display_rgb(image)
     radius = max(2, thickness + 1)
     for h in handles.handles:
         colour = COLOURS[h.kind]
@@ -94,12 +94,24 @@ def draw_handles(image: NDArray, handles: Handles, *, stage: str = "input", thic
     return canvas
 
 
-def _display_rgb(image: NDArray) -> NDArray[np.uint8]:
+def display_rgb(image: NDArray) -> NDArray[np.uint8]:
+    """An RGB uint8 copy of any supported panorama, for display.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, C)
+        uint8, uint16 (the high byte is kept) or float (0..1, clipped; NaN shows black);
+        gray and gray+alpha become gray RGB, alpha is dropped.
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W, 3)
+    """
     img = np.asarray(image)
     if img.dtype == np.uint16:
         img = (img >> 8).astype(np.uint8)
     elif img.dtype.kind == "f":
-        img = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        img = (np.clip(np.nan_to_num(img), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
     else:
         img = img.astype(np.uint8, copy=True)
     if img.ndim == 2:

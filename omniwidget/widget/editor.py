@@ -116,18 +116,11 @@ def _display_rgb8(image: NDArray, width: int) -> NDArray[np.uint8]:
     """An RGB uint8 copy of ``image`` at most ``width`` wide, for the browser."""
     import cv2
 
+    from ..core.draw import display_rgb
+
     if image.shape[1] > width:
         image = cv2.resize(image, (width, width // 2), interpolation=cv2.INTER_AREA)
-    if image.dtype == np.uint16:
-        image = (image >> 8).astype(np.uint8)
-    elif image.dtype.kind == "f":
-        image = (np.clip(np.nan_to_num(image), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-    if image.ndim == 2:
-        image = image[:, :, None]
-    channels = image.shape[2]
-    if channels in (1, 2):
-        image = np.repeat(image[:, :, :1], 3, axis=2)
-    return np.ascontiguousarray(image[:, :, :3])
+    return display_rgb(image)
 
 
 def _jpeg(rgb: NDArray[np.uint8], quality: int = 90) -> bytes:
