@@ -14,6 +14,7 @@ from omniwidget.core.quality import (
     forward_points,
     line_straightness,
     straightness,
+    tear,
 )
 from omniwidget.core.warping import grid_inverse, inverse_lonlat
 
@@ -145,3 +146,34 @@ def test_fold_signs_from_the_plane_agree_with_the_spheres_jacobians():
     det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
     clear = np.abs(det) > 1e-3  # away from the fold's edges, where the sign is a matter of rounding
     assert np.array_equal((det <= 0)[clear], folds.mask[1:-1][clear])
+
+
+def test_tear_is_near_zero_for_smooth_maps_across_the_seam_and_the_poles():
+    identity = tear(identity_map(512))
+    assert abs(identity - np.degrees((2 * np.pi / 512) ** 2) * 512 / 360) < 1e-6  # the step along a meridian turns by h²
+    half_turn = tear(moebius_map(Moebius.rotation([0.0, 90.0], 180.0), 512))  # sources wrap at the seam mid-image
+    over_the_poles = tear(moebius_map(Moebius.rotation([0.0, 0.0], 90.0), 512))  # rows run through the input's poles
+    zoom = tear(moebius_map(Moebius.point_map([10, 20], [35, -5], 3.0, 25.0), 512))
+    assert half_turn < 0.02 and over_the_poles < 0.05 and zoom < 0.2, (identity, half_turn, over_the_poles, zoom)
+
+
+def test_tear_measures_the_gap_where_the_map_jumps():
+    torn = identity_map(512)
+    torn[:, 256:, 0] += 5.0  # the right half shows the input 5 degrees further east: a gap of 7.1 px at 512 wide
+    gap = 5.0 * 512 / 360
+    assert abs(tear(torn) - gap) < 0.1, tear(torn)
+    assert abs(tear(torn, width=2048) - 4 * gap) < 0.4  # counted in the input's pixels
+    torn[:, 256:, 0] = coords.wrap_lon(torn[:, 256:, 0] - 180.0)  # the right half shows the far side: a gap half the sphere wide
+    assert tear(torn) > 100
+    rows = identity_map(512)
+    rows[:20, :, 1] = np.minimum(rows[:20, :, 1] + 3.0, 90.0)  # a jump between rows 19 and 20, near the north pole
+    assert abs(tear(rows) - 3.0 * 512 / 360) < 0.3 and tear(rows, max_abs_lat=70.0) < 0.02
+
+
+def test_tear_refuses_bad_arguments():
+    with pytest.raises(ValueError, match=r"max_abs_lat must be in \(0, 90\]"):
+        tear(identity_map(64), max_abs_lat=0)
+    with pytest.raises(ValueError, match="width must be an integer of at least 2, got 1"):
+        tear(identity_map(64), width=1)
+    with pytest.raises(ValueError, match=r"\(H, 2H, 2\)"):
+        tear(np.zeros((10, 10, 2)))

@@ -9,7 +9,8 @@ An *inverse map* is what every warp in omniwidget computes: for each output pixe
 - :func:`conformal_distortion`: how far the map is from conformal (angle-preserving);
 - :func:`fold_over`: where the map turns the image over (Jacobian determinant <= 0);
 - :func:`coverage`: the share of the input sphere the output shows;
-- :func:`cage_motion`: how far the inside of a fixed cage moved.
+- :func:`cage_motion`: how far the inside of a fixed cage moved;
+- :func:`tear`: the largest jump of the map between neighbouring output pixels.
 
 Use float64 maps: float32 holds only about 1e-4 of a pixel step.
 """
@@ -36,6 +37,7 @@ __all__ = [
     "line_straightness",
     "local_jacobians",
     "straightness",
+    "tear",
 ]
 
 
@@ -467,3 +469,54 @@ def cage_motion(inverse_map: ArrayLike, vertices: ArrayLike, width: int | None =
         raise ValueError("no output pixel lies inside the cage")
     moved = coords.angular_distance(m[inside], grid[inside])
     return float(moved.max() * (width or m.shape[1]) / 360.0)
+
+
+def tear(inverse_map: ArrayLike, width: int | None = None, max_abs_lat: float = 90.0) -> float:
+    """The largest jump of an inverse map between neighbouring output pixels beyond its smooth stretch, in input pixels.
+
+    Along a row or a column of output pixels a continuous warp shows input positions that
+    move in steps changing smoothly from one pixel to the next: each step is the local
+    stretch (a map that shrinks a region threefold shows neighbours 3 pixels apart), and
+    consecutive steps differ by a small fraction of a pixel, vanishing as the output grows
+    finer. Where the output tears, as along the seams of piecewise-constant weights, one
+    step jumps across a gap of the input, and the step changes by about the gap's width.
+
+    The tear is the largest change between consecutive steps, the second difference
+    ``|(p[i+1] - p[i]) - (p[i] - p[i-1])|`` of the input positions ``p`` as 3D unit
+    vectors, over every three consecutive output pixels along each row (columns wrap at
+    the ±180° seam) and each column, counted in pixels of ``360 / width`` degrees (an
+    input pixel's height, and its width on the equator). Measured on the sphere, it needs
+    no special case for the ±180° wrap of longitude (the same place) or near the poles
+    (where a large change of longitude is a small arc). The identity map gives
+    about ``(2 pi / W)²`` radians, 0.012 px at W = 512; a tear of a gap ``g`` pixels gives
+    about ``g``. The steps themselves (the plain jumps) are the map's stretch, not a tear.
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, W, 2)
+        For each output pixel centre the input ``[lon, lat]`` (degrees) it shows
+        (``Result.inverse_map(np.float64)``).
+    width : int, optional
+        Pixels are counted at this input width (default: the map's; pass
+        ``Result.source_width`` to count the input's own pixels).
+    max_abs_lat : float
+        Only output pixels within this latitude (degrees) count; every row by default.
+
+    Returns
+    -------
+    float
+        The largest change of step, in pixels.
+    """
+    m = _check_map(inverse_map)
+    width = m.shape[1] if width is None else whole_number(width, "width", 2)
+    if not 0 < max_abs_lat <= 90:
+        raise ValueError(f"max_abs_lat must be in (0, 90] degrees, got {max_abs_lat!r}")
+    _, lat = coords.grid_lonlat(m.shape[1])
+    rows = np.flatnonzero(np.abs(lat) <= max_abs_lat)
+    if len(rows) == 0:
+        raise ValueError(f"no output row lies within max_abs_lat = {max_abs_lat} degrees")
+    src = coords.lonlat_to_xyz(m[rows[0] : rows[-1] + 1])
+    along_rows = np.roll(src, -1, axis=1) - 2 * src + np.roll(src, 1, axis=1)
+    along_columns = src[2:] - 2 * src[1:-1] + src[:-2]
+    largest = max(np.linalg.norm(along_rows, axis=-1).max(), np.linalg.norm(along_columns, axis=-1).max(initial=0.0))
+    return float(np.degrees(largest) * width / 360.0)
