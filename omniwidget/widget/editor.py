@@ -29,6 +29,7 @@ import traitlets
 from numpy.typing import NDArray
 
 from ..core import coords
+from ..core.draw import display_rgb
 from ..core.errors import HandlesError, ImageError
 from ..core.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
 from ..core.io import check_panorama, read_image
@@ -115,8 +116,6 @@ def _as_document(value: Any) -> Handles:
 def _display_rgb8(image: NDArray, width: int) -> NDArray[np.uint8]:
     """An RGB uint8 copy of ``image`` at most ``width`` wide, for the browser."""
     import cv2
-
-    from ..core.draw import display_rgb
 
     if image.shape[1] > width:
         image = cv2.resize(image, (width, width // 2), interpolation=cv2.INTER_AREA)
@@ -262,6 +261,7 @@ class Editor(anywidget.AnyWidget):
             self._image_path = None
         self._image = check_panorama(image)
         self._image.flags.writeable = False
+        self._scaled: dict[int, NDArray] = {}
         width = self._image.shape[1]
         preview_width = whole_number(preview_width, "preview_width", minimum=2, even=True)
         self._preview_width = min(preview_width, width)
@@ -283,7 +283,7 @@ class Editor(anywidget.AnyWidget):
         super().__init__(
             handles=doc.to_dict(),
             height=height,
-            source=_jpeg(_display_rgb8(self._image, DISPLAY_WIDTH)),
+            source=_jpeg(display_rgb(self._downscaled(DISPLAY_WIDTH))),
             source_size=[width, width // 2],
         )
         self.on_msg(self._on_message)
@@ -297,11 +297,16 @@ class Editor(anywidget.AnyWidget):
         return self._image
 
     def _downscaled(self, width: int) -> NDArray:
+        """The panorama at most ``width`` wide, made once per width (display and preview share 2048)."""
         import cv2
 
-        if self._image.shape[1] <= width:
-            return self._image
-        return cv2.resize(self._image, (width, width // 2), interpolation=cv2.INTER_AREA)
+        width = min(width, self._image.shape[1])
+        if width not in self._scaled:
+            small = (
+                self._image if width == self._image.shape[1] else cv2.resize(self._image, (width, width // 2), interpolation=cv2.INTER_AREA)
+            )
+            self._scaled[width] = small
+        return self._scaled[width]
 
     # --- the handles ---------------------------------------------------------------------
     @property
@@ -327,10 +332,11 @@ class Editor(anywidget.AnyWidget):
             self._report_error(f"that edit was refused: {exc}")
             self.send_state("handles")  # the browser goes back to the handles kept here
 
-    def _set_handles(self, doc: Handles | dict, *, restoring: bool = False) -> None:
-        self._restoring = restoring
+    def _restore(self, doc: dict) -> None:
+        """Set the handles without recording an edit (undo and redo)."""
+        self._restoring = True
         try:
-            self.handles = doc.to_dict() if isinstance(doc, Handles) else doc
+            self.handles = doc
         finally:
             self._restoring = False
 
@@ -451,7 +457,7 @@ class Editor(anywidget.AnyWidget):
         if not source:
             return False
         target.append(self.handles)
-        self._set_handles(source.pop(), restoring=True)
+        self._restore(source.pop())
         return True
 
     def _edit(self, change: Callable[[list], None]) -> None:
