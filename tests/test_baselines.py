@@ -9,13 +9,22 @@ import warnings
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
-from omniwidget.core.baselines import BaselineResult, PerspectiveView, gaussian_2017, perspective, piecewise_constant, single_moebius
+from omniwidget.core import coords, scenes
+from omniwidget.core.baselines import (
+    BaselineResult,
+    Comparison,
+    PerspectiveView,
+    compare,
+    gaussian_2017,
+    perspective,
+    piecewise_constant,
+    single_moebius,
+)
 from omniwidget.core.errors import ImageError
 from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
 from omniwidget.core.pipeline import Result, warp
 from omniwidget.core.quality import coverage, straightness, tear
-from omniwidget.core.scenes import mark_lines, subdivide_line, synthetic_room
+from omniwidget.core.scenes import mark_lines, synthetic_room
 
 W = 512
 
@@ -64,21 +73,7 @@ def room():
 def close_pair():
     """Two parallel grid lines on one wall, about 7-9 degrees apart, each rectified by its own map."""
     scene = synthetic_room(W, size=(4.0, 3.0, 3.0), camera=(0.3, -0.2, -1.0), yaw=30.0, grid=0.5)
-    t = np.linspace(0, 1, 60)
-    pieces = [
-        p
-        for line in scene.lines_where(kind="grid", max_abs_lat=60)
-        for p in subdivide_line(line, 40)
-        if p.length > 25 and straightness(coords.geodesic(p.start, p.end, t), W) >= 2
-    ]
-    pairs = [
-        (a, b)
-        for i, a in enumerate(pieces)
-        for b in pieces[i + 1 :]
-        if a.faces == b.faces
-        and 5 < coords.angular_distance(coords.geodesic(a.start, a.end, t)[:, None], coords.geodesic(b.start, b.end, t)[None]).min() < 9
-    ]
-    a, b = pairs[0]
+    a, b = scenes.close_pair(scene)
     doc = Handles((LineHandle(a.start, a.end), LineHandle(b.start, b.end)), Options(rectify="each"))
     return scene, doc, *_run_all(scene.image, doc)
 
@@ -125,6 +120,31 @@ def test_gaussian_2017_bends_lines_that_are_close_together(close_pair):
 def test_gaussian_2017_bends_the_rooms_lines_more_than_bbw(room):
     _, _, _, figures = room
     assert figures["gaussian"]["straight"] > figures["BBW"]["straight"] + 0.3, _describe(figures)
+
+
+def test_compare_measures_every_method_as_the_tests_do(room):
+    scene, doc, results, figures = room
+    table = compare(scene.image, doc)
+    assert isinstance(table, Comparison) and list(table.summaries) == ["bbw", "piecewise_constant", "gaussian_2017", "single_moebius"]
+    for name, ours in zip(table.summaries, METHODS, strict=True):
+        s = table[name]
+        assert s.method == name and s.width == W
+        assert s.fold_over * 100 == pytest.approx(figures[ours]["folds"], abs=1e-12)
+        assert s.tear == pytest.approx(figures[ours]["tear"], rel=1e-6)
+        assert s.straightness == pytest.approx(figures[ours]["straight"], rel=1e-6)
+        assert np.array_equal(table.results[name].image, results[ours].image)
+    bundle = table._repr_mimebundle_()
+    assert bundle["application/json"] == table.as_dict() and "<table>" in bundle["text/html"]
+    assert bundle["text/plain"].count("\n") == 5 and "BBW (the paper)" in bundle["text/plain"]
+
+
+def test_compare_refuses_unknown_methods():
+    image = synthetic_room(64).image
+    doc = Handles((LineHandle((-4.0, 37.5), (68.0, 36.5)),))
+    with pytest.raises(ValueError, match="unknown: 'bbw2'"):
+        compare(image, doc, ("bbw", "bbw2"))
+    with pytest.raises(ValueError, match="non-empty"):
+        compare(image, doc, ())
 
 
 # --- the Result interface -------------------------------------------------------------

@@ -10,10 +10,12 @@ from omniwidget.core.quality import (
     cage_motion,
     conformal_distortion,
     coverage,
+    displacement,
     fold_over,
     forward_points,
     line_straightness,
     straightness,
+    summary,
     tear,
 )
 from omniwidget.core.warping import grid_inverse, inverse_lonlat
@@ -177,3 +179,39 @@ def test_tear_refuses_bad_arguments():
         tear(identity_map(64), width=1)
     with pytest.raises(ValueError, match=r"\(H, 2H, 2\)"):
         tear(np.zeros((10, 10, 2)))
+
+
+def test_displacement_of_a_turn_about_the_axis_is_its_mean_chord_angle():
+    """A turn by 10 degrees of longitude moves a point at latitude phi by 2 asin(cos(phi) sin(5 deg))."""
+    width = 1024
+    grid = identity_map(width)
+    turned = grid.copy()
+    turned[..., 0] = coords.wrap_lon(grid[..., 0] - 10.0)
+    phi = np.radians(np.linspace(-90, 90, 200001))
+    exact = np.trapezoid(np.degrees(2 * np.arcsin(np.cos(phi) * np.sin(np.radians(5.0)))) * np.cos(phi), phi) / 2
+    assert displacement(grid) < 1e-12
+    assert abs(displacement(turned) - exact) < 1e-3 * exact, (displacement(turned), exact)
+
+
+def test_summary_of_a_warp_is_its_figures_one_by_one():
+    from omniwidget.core.handles import CageHandle, Handles, PointHandle
+    from omniwidget.core.pipeline import warp
+    from omniwidget.core.scenes import synthetic_room
+
+    width = 256
+    line = LineHandle((-4.0, 37.5), (68.0, 36.5))
+    cage = CageHandle(((-150.0, -20.0), (-120.0, -20.0), (-120.0, 10.0), (-150.0, 10.0)))
+    doc = Handles((line, cage, PointHandle((100.0, -30.0), target=(104.0, -28.0))))
+    result = warp(synthetic_room(width).image, doc, warn=False)
+    s = summary(result)
+    m = result.inverse_map(np.float64)
+    assert s.method == "bbw" and s.width == width and len(s.lines) == 1
+    ((control, samples),) = result.constraints.lines
+    assert s.lines[0] == straightness(result.forward_points(samples, control), width, fit="best") == s.straightness
+    assert s.lines[0] == pytest.approx(line_straightness(m, samples, start=result.controls[control].moebius(samples)), abs=2e-3)
+    assert s.distortion_mean == conformal_distortion(m).mean and s.tear == tear(m) and s.coverage == coverage(m)
+    assert s.fold_over == result.folds.area and s.displacement == displacement(m) > 0
+    assert s.cage_motion == cage_motion(m, cage.vertices) < 1e-9
+    assert s.seconds == pytest.approx(sum(result.timings.values()))
+    as_dict = s.as_dict()
+    assert as_dict["straightness"] == s.straightness and as_dict["lines"] == list(s.lines)

@@ -19,6 +19,10 @@ solve when the document asks for it); only the way the maps are combined differs
   straight, but it is a planar picture of less than a hemisphere, stretched towards its
   edges.
 
+:func:`compare` runs the paper's method and the baselines on the same handles and
+measures each (:func:`omniwidget.core.quality.summary`): a :class:`Comparison`, shown in a
+notebook as a table.
+
 The first three return a :class:`BaselineResult`, a :class:`~omniwidget.core.pipeline.Result`
 with the same fields (``image``, ``controls``, ``folds``, ``inverse_map()``,
 ``inverse_points()``, ``forward_points()``), so every figure of
@@ -29,10 +33,14 @@ and the per-pixel weights are :meth:`BaselineResult.pixel_weights`.
 
 from __future__ import annotations
 
+import html
+import json
 import math
 import time
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -43,8 +51,8 @@ from .blend import NEGLIGIBLE, PixelWeights, blended_inverse
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .handles import CageHandle, Handles, PointHandle
 from .io import check_panorama
-from .pipeline import Result
-from .quality import FoldOver, fold_over
+from .pipeline import Result, warp
+from .quality import FoldOver, Summary, fold_over, summary
 from .warping import (
     ORDERS,
     PAD,
@@ -60,7 +68,18 @@ from .warping import (
     warp_moebius,
 )
 
-__all__ = ["SIGMA_PER_RADIUS", "BaselineResult", "PerspectiveView", "gaussian_2017", "perspective", "piecewise_constant", "single_moebius"]
+__all__ = [
+    "METHODS",
+    "SIGMA_PER_RADIUS",
+    "BaselineResult",
+    "Comparison",
+    "PerspectiveView",
+    "compare",
+    "gaussian_2017",
+    "perspective",
+    "piecewise_constant",
+    "single_moebius",
+]
 
 #: The Gaussian of :func:`gaussian_2017` has ``sigma = radius * SIGMA_PER_RADIUS``: it falls
 #: to ``exp(-4.5)``, about 1%, at the handle's radius.
@@ -675,3 +694,158 @@ def perspective(image: NDArray, center: ArrayLike, fov: float, width: int, heigh
     out = remap(pad_panorama(image), coordinates, order)
     lonlat.flags.writeable = False
     return PerspectiveView(out, lonlat, centre, float(fov))
+
+
+# --- the comparison ---------------------------------------------------------------------
+
+#: The methods :func:`compare` knows, by name: the paper's (``"bbw"``) and the baselines.
+METHODS: dict[str, Callable[..., Result]] = {
+    "bbw": warp,
+    "piecewise_constant": piecewise_constant,
+    "gaussian_2017": gaussian_2017,
+    "single_moebius": single_moebius,
+}
+
+#: Columns of the comparison table: (heading, Summary attribute, format).
+_COLUMNS = (
+    ("worst line from straight (px)", "straightness", "{:.2f}"),
+    ("fold-over (% of sphere)", "fold_over", "{:.3%}"),
+    ("tear (px)", "tear", "{:.2f}"),
+    ("conformal distortion, mean", "distortion_mean", "{:.3f}"),
+    ("conformal distortion, p99", "distortion_p99", "{:.3f}"),
+    ("sphere shown (%)", "coverage", "{:.1%}"),
+    ("mean displacement (°)", "displacement", "{:.2f}"),
+    ("fixed cage moved (px)", "cage_motion", "{:.2g}"),
+    ("time (s)", "seconds", "{:.2f}"),
+)
+_LABELS = {
+    "bbw": "BBW (the paper)",
+    "piecewise_constant": "piecewise-constant",
+    "gaussian_2017": "Gaussian 2017",
+    "single_moebius": "one Möbius map",
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    """The paper's method and the baselines on the same handles, measured alike.
+
+    Attributes
+    ----------
+    results : dict of str to Result
+        Each method's result, by name (``"bbw"``, ``"piecewise_constant"``, ...).
+    summaries : dict of str to Summary
+        Each method's quality figures (:func:`omniwidget.core.quality.summary`).
+
+    Notes
+    -----
+    In a notebook it shows as an HTML table, one row per method; its
+    ``application/json`` representation is :meth:`as_dict`, so a notebook's saved output
+    keeps the figures as numbers.
+    """
+
+    results: dict[str, Result]
+    summaries: dict[str, Summary]
+
+    def __getitem__(self, method: str) -> Summary:
+        return self.summaries[method]
+
+    def as_dict(self) -> dict[str, dict[str, Any]]:
+        """Every method's figures as plain numbers, by method name.
+
+        Returns
+        -------
+        dict of str to dict
+            :meth:`Summary.as_dict` of each method.
+        """
+        return {name: s.as_dict() for name, s in self.summaries.items()}
+
+    def _cells(self) -> list[list[str]]:
+        rows = []
+        for name, s in self.summaries.items():
+            cells = [_LABELS.get(name, name)]
+            for _, attribute, fmt in _COLUMNS:
+                value = getattr(s, attribute)
+                cells.append("–" if value is None or (isinstance(value, float) and math.isnan(value)) else fmt.format(value))
+            rows.append(cells)
+        return rows
+
+    def to_markdown(self) -> str:
+        """The table as Markdown.
+
+        Returns
+        -------
+        str
+        """
+        head = ["method", *(c[0] for c in _COLUMNS)]
+        lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+        lines += ["| " + " | ".join(row) + " |" for row in self._cells()]
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        head = "".join(f"<th>{html.escape(c[0])}</th>" for c in _COLUMNS)
+        body = "".join(
+            "<tr>"
+            + f"<th style='text-align:left'>{html.escape(row[0])}</th>"
+            + "".join(f"<td>{html.escape(c)}</td>" for c in row[1:])
+            + "</tr>"
+            for row in self._cells()
+        )
+        width = next(iter(self.summaries.values())).width if self.summaries else 0
+        caption = f"measured at {width} x {width // 2}: lines and tears in output pixels"
+        return f"<table><caption>{html.escape(caption)}</caption><thead><tr><th>method</th>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+    def _repr_mimebundle_(self, include: Any = None, exclude: Any = None) -> dict[str, Any]:
+        return {
+            "text/plain": self.to_markdown(),
+            "text/html": self._repr_html_(),
+            "application/json": json.loads(json.dumps(self.as_dict())),
+        }
+
+
+def compare(
+    image: NDArray,
+    handles: Handles,
+    methods: Sequence[str] = ("bbw", "piecewise_constant", "gaussian_2017", "single_moebius"),
+    *,
+    width: int | None = None,
+    samples: int = SAMPLES,
+) -> Comparison:
+    """Warp one panorama with the same handles by several methods and measure each.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W[, C])
+        The panorama (``W = 2 H``).
+    handles : Handles
+    methods : sequence of str
+        Names from :data:`METHODS`: ``"bbw"`` (:func:`omniwidget.warp`, the paper's
+        method), ``"piecewise_constant"``, ``"gaussian_2017"``, ``"single_moebius"``.
+    width : int, optional
+        Output width (default the input's); the figures count pixels at this width.
+    samples : int
+        Samples per line and cage edge, for every method alike.
+
+    Returns
+    -------
+    Comparison
+
+    Raises
+    ------
+    ValueError
+        If a method's name is unknown (or as the methods themselves raise).
+
+    Notes
+    -----
+    The warps' own :class:`~omniwidget.BlendWarning` s are not issued here: the fold-overs
+    they report are in each summary's ``fold_over``, and ``results[name].warnings`` keeps them.
+    """
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown or not methods:
+        raise ValueError(f"methods must be a non-empty sequence of {', '.join(METHODS)}; unknown: {', '.join(map(repr, unknown))}")
+    results: dict[str, Result] = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", category=UserWarning)
+        for name in methods:
+            results[name] = METHODS[name](image, handles, width=width, samples=samples)
+    return Comparison(results, {name: summary(r) for name, r in results.items()})

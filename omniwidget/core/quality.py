@@ -10,15 +10,18 @@ An *inverse map* is what every warp in omniwidget computes: for each output pixe
 - :func:`fold_over`: where the map turns the image over (Jacobian determinant <= 0);
 - :func:`coverage`: the share of the input sphere the output shows;
 - :func:`cage_motion`: how far the inside of a fixed cage moved;
-- :func:`tear`: the largest jump of the map between neighbouring output pixels.
+- :func:`tear`: the largest jump of the map between neighbouring output pixels;
+- :func:`displacement`: how far the map moves the sphere, on average;
+- :func:`summary`: all of them for one warp (a :class:`~omniwidget.Result`), as a :class:`Summary`.
 
 Use float64 maps: float32 holds only about 1e-4 of a pixel step.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -29,14 +32,17 @@ from ._checks import whole_number
 __all__ = [
     "Distortion",
     "FoldOver",
+    "Summary",
     "cage_motion",
     "conformal_distortion",
     "coverage",
+    "displacement",
     "fold_over",
     "forward_points",
     "line_straightness",
     "local_jacobians",
     "straightness",
+    "summary",
     "tear",
 ]
 
@@ -520,3 +526,129 @@ def tear(inverse_map: ArrayLike, width: int | None = None, max_abs_lat: float = 
     along_columns = src[2:] - 2 * src[1:-1] + src[:-2]
     largest = max(np.linalg.norm(along_rows, axis=-1).max(), np.linalg.norm(along_columns, axis=-1).max(initial=0.0))
     return float(np.degrees(largest) * width / 360.0)
+
+
+def displacement(inverse_map: ArrayLike) -> float:
+    """How far a warp moves the sphere: the area-weighted mean distance from each output pixel to the input position it shows.
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, W, 2)
+        See :func:`local_jacobians`.
+
+    Returns
+    -------
+    float
+        In degrees; 0 for the identity.
+    """
+    m = _check_map(inverse_map)
+    lon, lat = coords.grid_lonlat(m.shape[1])
+    moved = coords.angular_distance(m, np.stack(np.meshgrid(lon, lat), axis=-1))
+    return float(np.sum(moved * _area(m.shape[0])[:, None]))
+
+
+@dataclass(frozen=True)
+class Summary:
+    """The quality figures of one warp, each measured from its inverse map (see :func:`summary`).
+
+    Attributes
+    ----------
+    method : str
+        What made the warp: ``"bbw"`` for :func:`omniwidget.warp`, else the baseline's name.
+    lines : tuple of float
+        Each line piece's largest distance from its best straight fit in the output, in
+        output pixels (:func:`straightness` of the piece's samples found in the output);
+        NaN for a piece the output does not show.
+    distortion_mean, distortion_p99 : float
+        Conformal distortion, area-weighted mean and 99th percentile within ±80°
+        (:func:`conformal_distortion`).
+    fold_over : float
+        Share of the sphere turned over (:attr:`Result.folds`), 0 to 1.
+    tear : float
+        The largest jump of the map between neighbouring output pixels beyond its smooth
+        stretch, in output pixels (:func:`tear`).
+    coverage : float
+        Share of the input sphere shown (:func:`coverage`), 0 to 1.
+    displacement : float
+        Mean distance the sphere moved, degrees (:func:`displacement`).
+    cage_motion : float or None
+        The largest motion inside a cage whose vertices stay, in output pixels
+        (:func:`cage_motion`); None without such a cage.
+    seconds : float
+        The warp's own time (the sum of its ``timings``), not the measuring.
+    width : int
+        Width of the output, the pixels the figures count in.
+    """
+
+    method: str
+    lines: tuple[float, ...]
+    distortion_mean: float
+    distortion_p99: float
+    fold_over: float
+    tear: float
+    coverage: float
+    displacement: float
+    cage_motion: float | None
+    seconds: float
+    width: int
+
+    @property
+    def straightness(self) -> float:
+        """The worst line's distance from straight, in pixels (NaN without lines, or if one is not shown)."""
+        if not self.lines:
+            return math.nan
+        return math.nan if any(math.isnan(v) for v in self.lines) else max(self.lines)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The figures as plain numbers (JSON-ready), with ``straightness`` the worst line.
+
+        Returns
+        -------
+        dict of str
+        """
+        out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        out["straightness"] = self.straightness
+        return out
+
+
+def summary(result: Any) -> Summary:
+    """Every quality figure of one warp: straightness, distortion, fold-over, tear, coverage, displacement, cages.
+
+    Parameters
+    ----------
+    result : Result
+        Of :func:`omniwidget.warp` or of a baseline (:mod:`omniwidget.core.baselines`):
+        anything with ``inverse_map()``, ``forward_points()``, ``folds``, ``constraints``,
+        ``handles`` and ``timings``.
+
+    Returns
+    -------
+    Summary
+
+    Notes
+    -----
+    Lines are found in the output by inverting the map from each piece's own Möbius map
+    (``result.forward_points``), so a line is measured where it is even where the map
+    folds elsewhere. At 512 x 256 all figures take about 0.3 s.
+    """
+    from .handles import CageHandle
+
+    m = result.inverse_map(np.float64)
+    width = m.shape[1]
+    lines = tuple(straightness(result.forward_points(samples, c), width, fit="best") for c, samples in result.constraints.lines)
+    lines = tuple(v if math.isfinite(v) else math.nan for v in lines)
+    distortion = conformal_distortion(m)
+    fixed = [h.vertices for h in result.handles.handles if isinstance(h, CageHandle) and h.finals == h.vertices]
+    return Summary(
+        method=getattr(result, "method", "bbw"),
+        lines=lines,
+        distortion_mean=distortion.mean,
+        distortion_p99=distortion.p99,
+        fold_over=result.folds.area,
+        tear=tear(m),
+        coverage=coverage(m),
+        displacement=displacement(m),
+        cage_motion=max(cage_motion(m, v) for v in fixed) if fixed else None,
+        seconds=float(sum(result.timings.values())),
+        width=width,
+    )

@@ -41,6 +41,7 @@ from . import coords
 from ._checks import whole_number
 
 __all__ = [
+    "close_pair",
     "mark_lines",
     "FACE_COLORS",
     "FACE_NAMES",
@@ -337,6 +338,58 @@ def mark_lines(
             picked.append(line)
             clouds.append(cloud)
     return picked
+
+
+def close_pair(
+    scene: Scene,
+    gap: tuple[float, float] = (5.0, 9.0),
+    *,
+    piece: float = 40.0,
+    min_length: float = 25.0,
+    min_bend: float = 2.0,
+    max_abs_lat: float = 60.0,
+) -> tuple[SceneLine, SceneLine]:
+    """Two grid lines of one face, close together, each bent: handles that pull on each other.
+
+    Grid lines are cut into pieces of at most ``piece`` degrees (:func:`subdivide_line`);
+    of those at least ``min_length`` degrees long and bent by at least ``min_bend`` pixels
+    (from their chord, at the scene's width), the first pair on the same face whose arcs
+    come within ``gap`` degrees of each other (their closest samples) is returned.
+
+    Parameters
+    ----------
+    scene : Scene
+        A room with a grid (``grid`` not None).
+    gap : (float, float)
+        Smallest and largest closest distance between the two arcs, degrees.
+    piece, min_length, min_bend, max_abs_lat : float
+        Degrees, degrees, pixels, degrees.
+
+    Returns
+    -------
+    (SceneLine, SceneLine)
+
+    Raises
+    ------
+    ValueError
+        If the scene has no such pair.
+    """
+    from .quality import straightness
+
+    t = np.linspace(0.0, 1.0, 60)
+    pieces = [
+        p
+        for line in scene.lines_where(kind="grid", max_abs_lat=max_abs_lat)
+        for p in subdivide_line(line, piece)
+        if p.length > min_length and straightness(coords.geodesic(p.start, p.end, t), scene.width) >= min_bend
+    ]
+    arcs = [coords.geodesic(p.start, p.end, t) for p in pieces]
+    for i, a in enumerate(pieces):
+        for j in range(i + 1, len(pieces)):
+            b = pieces[j]
+            if a.faces == b.faces and gap[0] < coords.angular_distance(arcs[i][:, None], arcs[j][None]).min() < gap[1]:
+                return a, b
+    raise ValueError(f"the scene has no two grid lines of one face within {gap[0]} to {gap[1]} degrees of each other")
 
 
 def synthetic_room(
