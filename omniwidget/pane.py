@@ -54,6 +54,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from ._latest import Latest
 from .core import coords
 from .core.constraints import SAMPLES
 from .core.draw import display_rgb, draw_polyline
@@ -430,11 +431,17 @@ def render_weights(
     return np.ascontiguousarray(shot[..., :3], dtype=np.uint8)
 
 
+#: The vtk.js viewer of an exported page adds favicon links to kitware.github.io; nothing may
+#: be fetched at run time, so they point nowhere instead.
+_FAVICON = "https://kitware.github.io/vtk-js/icon/favicon-${t}x${t}.png"
+
+
 def _html_export(plotter: Any) -> str:
-    """The plotter as a standalone interactive HTML page (pyvista >= 0.49 with trame-pyvista)."""
+    """The plotter as a standalone interactive HTML page (pyvista >= 0.49 with trame-pyvista), fetching nothing."""
     component = getattr(plotter, "trame", None)
     exported = component.export_html(None) if component is not None else plotter.export_html(None)
-    return exported.getvalue() if hasattr(exported, "getvalue") else str(exported)
+    page = exported.getvalue() if hasattr(exported, "getvalue") else str(exported)
+    return page.replace(_FAVICON, "data:,")
 
 
 # --- 2D ------------------------------------------------------------------------------------
@@ -595,6 +602,11 @@ class WeightsPane:
     Deselecting (``editor.selected == -1``) keeps the last handle on show. A result without a
     mesh (a single Möbius map) or a selection the preview does not have yet shows a message
     instead of raising. Call :meth:`close` to stop following the editor.
+
+    Following an editor, the pane redraws on a thread of its own (only the newest redraw
+    runs), so the editor's next preview never waits for it; :meth:`wait` blocks until the
+    pane shows the editor's current selection and preview. The first draw, and assigning
+    :attr:`handle`, draw at once.
     """
 
     def __init__(
@@ -614,6 +626,7 @@ class WeightsPane:
         self._texture = bool(texture)
         self._zoom = zoom
         self._lock = threading.RLock()
+        self._worker = Latest("omniwidget-pane")
         self.image: NDArray[np.uint8] | None = None
         self.html: str | None = None
         self.message = ""
@@ -635,6 +648,7 @@ class WeightsPane:
         else:
             self._view = ipywidgets.HTML()
         self.widget = ipywidgets.VBox([self._caption, self._view])
+        self.widget.add_class("ow-weights-pane")
         if self._editor is not None:
             if self._editor.preview_result is None:
                 self._editor.wait()
@@ -665,11 +679,33 @@ class WeightsPane:
     def _on_selected(self, change: dict) -> None:
         if change["new"] is not None and change["new"] >= 0:
             self._handle = int(change["new"])
-            self.refresh()
+            self._worker.submit(self._redraw)
 
     def _on_status(self, change: dict) -> None:
         if self.result is not self._shown:  # a new preview (not merely "busy")
+            self._worker.submit(self._redraw)
+
+    def _redraw(self) -> None:
+        """:meth:`refresh` on the pane's thread: a failure is shown in the caption, never lost in the thread."""
+        try:
             self.refresh()
+        except Exception as exc:  # noqa: BLE001 - shown in the pane
+            self._show_message(f"could not draw the weights: {type(exc).__name__}: {exc}")
+
+    def wait(self, timeout: float | None = 60.0) -> bool:
+        """Block until the redraws asked for so far are done.
+
+        Parameters
+        ----------
+        timeout : float or None
+            Seconds; None waits for ever.
+
+        Returns
+        -------
+        bool
+            False if the timeout passed first.
+        """
+        return self._worker.wait(timeout)
 
     def close(self) -> None:
         """Stop following the editor and close the widgets."""
@@ -709,7 +745,10 @@ class WeightsPane:
                 finally:
                     plotter.close()
                 w, h = (int(s) for s in self._window_size)
-                self._view.value = f'<iframe srcdoc="{_html.escape(self.html)}" width="{w}" height="{h}" style="border:0"></iframe>'
+                self._view.value = (
+                    f'<iframe class="ow-weights-view" data-handle="{self._handle}" srcdoc="{_html.escape(self.html)}" '
+                    f'width="{w}" height="{h}" style="border:0"></iframe>'
+                )
             self._caption.value = f"<b>weights of {_html.escape(label)}</b> on the adaptive mesh ({len(result.vertices)} vertices)"
 
     def _repr_mimebundle_(self, **kwargs: Any) -> Any:

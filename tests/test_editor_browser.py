@@ -237,3 +237,72 @@ def test_draw_rectify_turn_undo_in_jupyterlab(jupyter_server, browser):
             description="the handles in the saved notebook's widget state",
         )
         assert nb.console_errors() == [], "\n".join(nb.console_errors())
+
+
+PANE_NOTEBOOK = [
+    "import json\nimport omniwidget as ow\nfrom omniwidget.cli import DEMO_HANDLES\n\n"
+    "ed = ow.Editor(ow.sample_path(), handles=DEMO_HANDLES, height=360)\ned",
+    "from omniwidget import pane\n\nweights = pane.WeightsPane(ed, window_size=(420, 420))\nweights",
+]
+
+
+def pane_pixels(nb, handle: int) -> np.ndarray:
+    """A screenshot of the pane's vtk.js canvas once it shows ``handle``'s weights, BGR."""
+    frame = nb.wait_for_output(f'iframe.ow-weights-view[data-handle="{handle}"]', timeout=60).first
+    frame.scroll_into_view_if_needed()
+    canvas = frame.content_frame.locator("canvas").first
+    canvas.wait_for(state="visible", timeout=30_000)
+
+    def drawn():  # vtk.js draws once the scene is loaded: wait for a frame with pixels that vary
+        shot = cv2.imdecode(np.frombuffer(canvas.screenshot(), np.uint8), cv2.IMREAD_COLOR)
+        return (shot,) if shot.std() > 20 else None  # a tuple: wait_until tests truth
+
+    return bh.wait_until(drawn, timeout=30, description=f"the pane's WebGL canvas drawn for handle {handle}", diagnostics=nb.diagnostics)[0]
+
+
+def test_weights_pane_renders_rotates_and_follows_the_selection_in_jupyterlab(jupyter_server, browser):
+    """Issue 6: the pyvista pane's html backend draws the mesh in a WebGL canvas; clicking a handle in the editor recolours it."""
+    bh.write_notebook(jupyter_server.root / "pane.ipynb", PANE_NOTEBOOK)
+    requests: list[str] = []
+    with bh.NotebookPage(browser, jupyter_server, "pane.ipynb") as nb:
+        nb.page.on("request", lambda r: requests.append(r.url))
+        nb.run_all()
+        nb.wait_for_output(".ow-editor")
+        wait_idle(nb, 0, "the first result on screen")
+        client = nb.kernel_client()
+        assert kernel_json(client, "weights.backend") == "html"
+        first = pane_pixels(nb, 0)
+        webgl = (
+            nb.output("iframe.ow-weights-view")
+            .first.content_frame.locator("canvas")
+            .first.evaluate("c => !!(c.getContext('webgl2') || c.getContext('webgl'))")
+        )
+        assert webgl, "the pane's canvas is not a WebGL canvas"
+
+        # select the television's line (handle 1) with the mouse: the pane recolours by its weights
+        nb.output('[data-tool="select"]').click()
+        pane = Pane(nb, "input")
+        nb.page.mouse.click(*pane.at((-64.0, 12.0)))
+        bh.wait_until(lambda: kernel_json(client, "ed.selected") == 1, timeout=20, description="handle 1 selected in the kernel")
+        second = pane_pixels(nb, 1)
+        changed = np.abs(second.astype(int) - first.astype(int)).max(axis=2) > 40
+        assert changed.mean() > 0.05, f"only {changed.mean():.1%} of the pane changed when another handle was selected"
+        assert "handles[1] (line)" in nb.output(".ow-weights-pane").first.inner_text()
+
+        # it rotates in the notebook: a drag on the canvas turns the sphere (vtk.js, no server)
+        canvas = nb.output("iframe.ow-weights-view").first.content_frame.locator("canvas").first
+        box = canvas.bounding_box()
+        cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+        drag(nb.page, [(cx, cy), (cx + 60, cy + 10), (cx + 120, cy + 20)], steps=5)
+        turned = bh.wait_until(
+            lambda: (lambda s: (s,) if (np.abs(s.astype(int) - second.astype(int)).max(axis=2) > 40).mean() > 0.05 else None)(
+                cv2.imdecode(np.frombuffer(canvas.screenshot(), np.uint8), cv2.IMREAD_COLOR)
+            ),
+            timeout=10,
+            description="the sphere turned by a drag",
+        )[0]
+        cv2.imwrite(str(bh.artifact_dir() / "pane_handle1_turned.png"), turned)
+        nb.screenshot("pane")
+        outside = [u for u in requests if not u.startswith(("http://127.0.0.1", "http://localhost", "data:", "blob:", "about:"))]
+        assert outside == [], outside
+        assert nb.console_errors() == [], "\n".join(nb.console_errors())

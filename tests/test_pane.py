@@ -191,13 +191,22 @@ def test_pane_on_a_result_shows_a_png_and_recolours(result):
         pane.WeightsPane(result, backend="vtk")
 
 
-def test_pane_html_backend_wraps_the_export(result, monkeypatch):
-    pytest.importorskip("ipywidgets")
-    monkeypatch.setattr(pane, "_choose_backend", lambda backend: "html")
-    monkeypatch.setattr(pane, "_html_export", lambda plotter: '<html><body>scene "x"</body></html>')
-    shown = pane.WeightsPane(result, 1, window_size=SIZE)
+def test_pane_html_backend_exports_a_self_contained_page(result):
+    """trame-pyvista's export: vtk.js and the scene in one page that fetches nothing (the browser test renders it)."""
+    pytest.importorskip("trame_pyvista")
+    import html
+    import re
+
+    shown = pane.WeightsPane(result, 1, window_size=SIZE, backend="html")
     assert shown.backend == "html" and shown.image is None
-    assert shown._view.value.startswith("<iframe srcdoc=") and "&quot;x&quot;" in shown._view.value
+    page = shown.html
+    assert page.count("<script") >= 1 and "vtk" in page and len(page) > 100_000
+    assert re.findall(r"""(?:src|href)\s*=\s*["']?(https?:[^"'\s>]+)""", page) == [] and "vtk-js/icon" not in page
+    prefix = '<iframe class="ow-weights-view" data-handle="1" srcdoc="'
+    assert shown._view.value.startswith(prefix)
+    assert html.unescape(shown._view.value[len(prefix) : shown._view.value.index('" width=')]) == page
+    shown.handle = 2
+    assert shown.html != page and 'data-handle="2"' in shown._view.value
 
 
 def test_auto_backend_is_static_without_trame():
@@ -215,15 +224,15 @@ def test_pane_follows_the_editors_selection():
     assert shown.handle == 0 and shown.result is editor.preview_result
     before = shown.image.copy()
     editor.selected = 1
-    assert shown.handle == 1
+    assert shown.wait() and shown.handle == 1
     assert np.abs(shown.image.astype(int) - before.astype(int)).max(axis=2).mean() > 5
     editor.selected = -1  # deselecting keeps the last handle on show
-    assert shown.handle == 1
+    assert shown.wait() and shown.handle == 1
     # a new preview is followed too
     old = editor.preview_result
     editor.handles = {**SCENE, "handles": SCENE["handles"][1:]}
     editor.wait()
-    assert editor.preview_result is not old and shown.result is editor.preview_result
+    assert shown.wait() and editor.preview_result is not old and shown.result is editor.preview_result
     assert shown._shown is editor.preview_result and shown.message == ""
     shown.close()
     editor.selected = 2
@@ -237,4 +246,4 @@ def test_pane_shows_a_message_until_the_editor_has_a_mesh():
     assert shown.image is None and "no mesh" in shown.message and "no mesh" in shown._caption.value
     editor.handles = SCENE
     editor.wait()
-    assert shown.message == "" and shown.image is not None and shown.image.std() > 20
+    assert shown.wait() and shown.message == "" and shown.image is not None and shown.image.std() > 20

@@ -28,6 +28,7 @@ import numpy as np
 import traitlets
 from numpy.typing import NDArray
 
+from .._latest import Latest
 from ..core import coords
 from ..core.draw import display_rgb
 from ..core.errors import HandlesError, ImageError
@@ -67,42 +68,6 @@ class _Document(traitlets.TraitType):
             return _as_document(value).to_dict()
         except HandlesError as exc:
             raise _RefusedHandles(exc.where, exc.problem) from None
-
-
-class _Latest:
-    """A worker thread that runs only the newest job: submitting replaces a job still waiting."""
-
-    def __init__(self) -> None:
-        self._cond = threading.Condition()
-        self._job: Callable[[], None] | None = None
-        self._running = False
-        self._thread: threading.Thread | None = None
-
-    def submit(self, job: Callable[[], None]) -> None:
-        with self._cond:
-            self._job = job
-            self._cond.notify_all()
-            if self._thread is None:
-                self._thread = threading.Thread(target=self._loop, name="omniwidget-editor", daemon=True)
-                self._thread.start()
-
-    def _loop(self) -> None:
-        while True:
-            with self._cond:
-                self._cond.wait_for(lambda: self._job is not None)
-                job, self._job = self._job, None
-                self._running = True
-            try:
-                job()
-            finally:
-                with self._cond:
-                    self._running = False
-                    self._cond.notify_all()
-
-    def wait(self, timeout: float | None) -> bool:
-        """Block until no job waits or runs; False on timeout."""
-        with self._cond:
-            return self._cond.wait_for(lambda: self._job is None and not self._running, timeout)
 
 
 def _as_document(value: Any) -> Handles:
@@ -270,7 +235,7 @@ class Editor(anywidget.AnyWidget):
         self.handles_path = Path(handles_path) if handles_path is not None else Path(f"{stem}.handles.json")
         self._lock = threading.Lock()
         self._generation = 0
-        self._worker = _Latest()
+        self._worker = Latest("omniwidget-editor")
         self._undo: list[dict] = []
         self._redo: list[dict] = []
         self._restoring = False
