@@ -32,9 +32,11 @@ Notebook backend
 ----------------
 :class:`WeightsPane` picks its backend automatically (``backend="auto"``):
 
-* ``"html"`` when ``trame_pyvista`` is importable: the scene is exported with
-  ``plotter.trame.export_html`` (pyvista >= 0.49 with the ``trame-pyvista`` package) and shown,
-  rotatable, in an ``ipywidgets.HTML`` iframe;
+* ``"html"`` when ``trame_vtk`` is importable (the ``trame-vtk`` package): the scene is
+  serialised for vtk.js in this process and written as one self-contained page, the way
+  pyvista's own ``export_html`` does but without starting a trame server (which would open a
+  port and try to download VTK's WebAssembly build), and shown, rotatable, in an
+  ``ipywidgets.HTML`` iframe;
 * ``"static"`` otherwise: the off-screen render of :func:`render_weights` as a PNG in an
   ``ipywidgets.Image``.
 
@@ -437,11 +439,34 @@ _FAVICON = "https://kitware.github.io/vtk-js/icon/favicon-${t}x${t}.png"
 
 
 def _html_export(plotter: Any) -> str:
-    """The plotter as a standalone interactive HTML page (pyvista >= 0.49 with trame-pyvista), fetching nothing."""
-    component = getattr(plotter, "trame", None)
-    exported = component.export_html(None) if component is not None else plotter.export_html(None)
-    page = exported.getvalue() if hasattr(exported, "getvalue") else str(exported)
-    return page.replace(_FAVICON, "data:,")
+    """The plotter's scene as a standalone interactive vtk.js page (trame-vtk), fetching nothing.
+
+    What trame's ``viewport.geometry.view.get.export`` does for a running server, done here
+    directly: serialise the render window, gather its arrays, zip them as a ``.vtksz`` scene
+    and write it into trame-vtk's offline viewer page.
+    """
+    import io
+    import json
+    import zipfile
+
+    from trame_vtk.modules.vtk.serializers import SynchronizationContext, extract_array_hash, initialize_serializers, reference_id, serialize
+    from trame_vtk.tools.vtksz2html import write_html
+
+    initialize_serializers()
+    context = SynchronizationContext()
+    context.set_ignore_last_dependencies(True)
+    window = plotter.render_window
+    plotter.render()
+    camera = plotter.renderer.GetActiveCamera()
+    scene = serialize(None, window, reference_id(window), context, 1)
+    scene["extra"] = {"vtkRefId": reference_id(window), "centerOfRotation": camera.GetFocalPoint(), "camera": reference_id(camera)}
+    hashes = {e["hash"]: {**e, "content": context.get_cached_data_array(e["hash"], False)} for e in extract_array_hash(scene)}
+    archive = io.BytesIO()
+    with zipfile.ZipFile(archive, "w") as z:
+        z.writestr("index.json", json.dumps({"hashes": hashes, "scene": scene}), compress_type=zipfile.ZIP_DEFLATED)
+    page = io.StringIO()
+    write_html(archive.getvalue(), page)
+    return page.getvalue().replace(_FAVICON, "data:,")
 
 
 # --- 2D ------------------------------------------------------------------------------------
@@ -545,9 +570,9 @@ def refinement_rounds(source: Result | object) -> list[tuple[NDArray[np.float64]
 def _choose_backend(backend: str) -> str:
     if backend not in ("auto", "html", "static"):
         raise ValueError(f"backend must be 'auto', 'html' or 'static', got {backend!r}")
-    has_trame = importlib.util.find_spec("trame_pyvista") is not None
+    has_trame = importlib.util.find_spec("trame_vtk") is not None
     if backend == "html" and not has_trame:
-        raise ImportError('backend="html" needs trame-pyvista: pip install trame-pyvista (or use backend="auto")')
+        raise ImportError('backend="html" needs trame-vtk: pip install trame-vtk (or use backend="auto")')
     if backend == "auto":
         return "html" if has_trame else "static"
     return backend
@@ -575,7 +600,7 @@ class WeightsPane:
     handle : int, optional
         The handle to show first; default the editor's selection, or 0.
     backend : {"auto", "html", "static"}
-        ``"auto"``: ``"html"`` (interactive, exported by trame-pyvista) when ``trame_pyvista``
+        ``"auto"``: ``"html"`` (interactive, a vtk.js page written with trame-vtk) when ``trame_vtk``
         is importable, else ``"static"`` (a PNG of :func:`render_weights`).
     window_size : (int, int)
         Size of the render.

@@ -192,8 +192,8 @@ def test_pane_on_a_result_shows_a_png_and_recolours(result):
 
 
 def test_pane_html_backend_exports_a_self_contained_page(result):
-    """trame-pyvista's export: vtk.js and the scene in one page that fetches nothing (the browser test renders it)."""
-    pytest.importorskip("trame_pyvista")
+    """the trame-vtk export: vtk.js and the scene in one page that fetches nothing (the browser test renders it)."""
+    pytest.importorskip("trame_vtk")
     import html
     import re
 
@@ -212,7 +212,7 @@ def test_pane_html_backend_exports_a_self_contained_page(result):
 def test_auto_backend_is_static_without_trame():
     import importlib.util
 
-    expected = "html" if importlib.util.find_spec("trame_pyvista") else "static"
+    expected = "html" if importlib.util.find_spec("trame_vtk") else "static"
     assert pane._choose_backend("auto") == expected
 
 

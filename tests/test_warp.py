@@ -231,6 +231,10 @@ def test_inverse_map_of_the_result():
     lon, lat = coords.grid_lonlat(128)
     expected = m.inverse(np.stack(np.meshgrid(lon, lat), axis=-1))
     assert coords.angular_distance(inv, expected).max() < 1e-4
+    exact = result.inverse_map(np.float64)  # for the quality figures, as Result.inverse_map
+    assert exact.dtype == np.float64 and coords.angular_distance(exact, expected).max() < 1e-9
+    with pytest.raises(ValueError, match="dtype must be numpy.float32 or numpy.float64"):
+        result.inverse_map(np.int32)
 
 
 def test_room_lines_rectified_one_at_a_time_are_straight_in_the_image():

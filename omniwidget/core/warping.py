@@ -244,13 +244,20 @@ class WarpResult:
     moebius: Moebius
     source_width: int
 
-    def inverse_map(self) -> NDArray[np.float32]:
-        """For each output pixel centre, the input ``[lon, lat]`` in degrees it shows, float32 (H, W, 2).
+    def inverse_map(self, dtype: type[np.floating] = np.float32) -> NDArray[np.floating]:
+        """For each output pixel centre, the input ``[lon, lat]`` in degrees it shows, (H, W, 2).
 
         Longitudes are in ``[-180, 180]``.
+
+        Parameters
+        ----------
+        dtype : {numpy.float32, numpy.float64}
+            float64 for measurements (:mod:`omniwidget.core.quality`), as ``Result.inverse_map``.
         """
+        if dtype not in (np.float32, np.float64):
+            raise ValueError(f"dtype must be numpy.float32 or numpy.float64, got {dtype!r}")
         width = self.image.shape[1]
-        return inverse_lonlat(grid_inverse(self.moebius.inverse), width).astype(np.float32)
+        return inverse_lonlat(grid_inverse(self.moebius.inverse), width).astype(dtype, copy=False)
 
 
 def warp_moebius(image: NDArray, moebius: Moebius, *, width: int | None = None, order: Order = "bilinear") -> WarpResult:
