@@ -449,7 +449,13 @@ def _html_export(plotter: Any) -> str:
     import json
     import zipfile
 
-    from trame_vtk.modules.vtk.serializers import SynchronizationContext, extract_array_hash, initialize_serializers, reference_id, serialize
+    from trame_vtk.modules.vtk.serializers import (
+        SynchronizationContext,
+        extract_array_hash,
+        initialize_serializers,
+        reference_id,
+        serialize,
+    )
     from trame_vtk.tools.vtksz2html import write_html
 
     initialize_serializers()

@@ -26,7 +26,13 @@ def _extras(project: dict, name: str) -> list[str]:
 def test_binder_requirements_are_the_packages_and_the_notebook_extras():
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     wanted = {}
-    for spec in [*project["dependencies"], *_extras(project, "notebooks"), *_extras(project, "pane-html"), "libigl>=2.5", "jupyterlab>=4.0"]:
+    for spec in [
+        *project["dependencies"],
+        *_extras(project, "notebooks"),
+        *_extras(project, "pane-html"),
+        "libigl>=2.5",
+        "jupyterlab>=4.0",
+    ]:
         req = requirements.Requirement(spec)
         wanted[req.name] = str(req.specifier)
     lines = [line.split("#")[0].strip() for line in (ROOT / "binder" / "requirements.txt").read_text().splitlines()]
