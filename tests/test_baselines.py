@@ -347,3 +347,15 @@ def test_perspective_refuses_bad_arguments():
         perspective(image, (0.0, 0.0), 90.0, 10, 10, order="cubic")
     with pytest.raises(ImageError):
         perspective(image[:, :40], (0.0, 0.0), 90.0, 10, 10)
+
+
+def test_compare_without_lines_gives_strict_json():
+    """No line: straightness is NaN in the summary, None (null) in the JSON a notebook saves."""
+    import json
+
+    doc = Handles((PointHandle((0.0, 0.0), target=(5.0, 0.0)), PointHandle((90.0, 0.0), target=(92.0, 3.0))))
+    table = compare(synthetic_room(128).image, doc, ("bbw", "gaussian_2017"))
+    assert np.isnan(table["bbw"].straightness) and table["bbw"].lines == ()
+    figures = json.loads(json.dumps(table._repr_mimebundle_()["application/json"], allow_nan=False))
+    assert figures["bbw"]["straightness"] is None and figures["bbw"]["cage_motion"] is None
+    assert "–" in table.to_markdown()

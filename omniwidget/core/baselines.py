@@ -34,7 +34,6 @@ and the per-pixel weights are :meth:`BaselineResult.pixel_weights`.
 from __future__ import annotations
 
 import html
-import json
 import math
 import time
 import warnings
@@ -51,7 +50,7 @@ from .blend import NEGLIGIBLE, PixelWeights, blended_inverse
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .handles import CageHandle, Handles, PointHandle
 from .io import check_panorama
-from .pipeline import Result, warp
+from .pipeline import BlendWarning, Result, warp
 from .quality import FoldOver, Summary, fold_over, summary
 from .warping import (
     ORDERS,
@@ -799,7 +798,7 @@ class Comparison:
         return {
             "text/plain": self.to_markdown(),
             "text/html": self._repr_html_(),
-            "application/json": json.loads(json.dumps(self.as_dict())),
+            "application/json": self.as_dict(),
         }
 
 
@@ -845,7 +844,7 @@ def compare(
         raise ValueError(f"methods must be a non-empty sequence of {', '.join(METHODS)}; unknown: {', '.join(map(repr, unknown))}")
     results: dict[str, Result] = {}
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", category=UserWarning)
+        warnings.simplefilter("ignore", category=BlendWarning)
         for name in methods:
             results[name] = METHODS[name](image, handles, width=width, samples=samples)
     return Comparison(results, {name: summary(r) for name, r in results.items()})

@@ -600,14 +600,18 @@ class Summary:
         return math.nan if any(math.isnan(v) for v in self.lines) else max(self.lines)
 
     def as_dict(self) -> dict[str, Any]:
-        """The figures as plain numbers (JSON-ready), with ``straightness`` the worst line.
+        """The figures as plain numbers (JSON-ready: NaN becomes None), with ``straightness`` the worst line.
 
         Returns
         -------
         dict of str
         """
-        out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
-        out["straightness"] = self.straightness
+
+        def plain(v: Any) -> Any:
+            return None if isinstance(v, float) and math.isnan(v) else v
+
+        out = {k: ([plain(x) for x in v] if isinstance(v, tuple) else plain(v)) for k, v in self.__dict__.items()}
+        out["straightness"] = plain(self.straightness)
         return out
 
 
