@@ -343,7 +343,8 @@ def _plotter(
     plotter = pv.Plotter(off_screen=True, window_size=size)
     plotter.set_background("#202020")
     # courier: VTK's built-in "arial" draws square brackets as parentheses
-    bar = {"title": f"weight of {label}", "color": "white", "n_labels": 6, "fmt": "%.1f", "font_family": "courier"}
+    # no title on the bar: VTK lays a long one over the labels; the text above names the handle
+    bar = {"title": "", "color": "white", "n_labels": 6, "fmt": "%.1f", "font_family": "courier", "position_x": 0.1, "width": 0.8}
     if texture:
         panorama = result.image if image is None else check_panorama(image)
         soup, tex = _textured_soup(result, weights, panorama)
@@ -354,7 +355,7 @@ def _plotter(
             mesh, scalars=label, cmap=CMAP, clim=(0.0, 1.0), show_edges=True, edge_color="black", line_width=0.5, scalar_bar_args=bar
         )
     _add_handles(plotter, result, handle)
-    plotter.add_text(label, position="upper_left", font_size=10, color="white", font="courier")
+    plotter.add_text(f"weight of {label}", position="upper_left", font_size=10, color="white", font="courier")
 
     centre = coords.lonlat_to_xyz(look_at)
     _, north = coords.local_frame(look_at)
