@@ -32,6 +32,7 @@ ed"""
 
 
 def main() -> int:
+    """Start JupyterLab and Chromium, show the editor, write the screenshot; the exit status."""
     out = REPO_ROOT / "docs" / "images" / "editor.png"
     with bh.JupyterServer(name="editor-picture") as server, bh.launch_browser() as browser:
         bh.write_notebook(server.root / "picture.ipynb", [CELL])
