@@ -302,6 +302,21 @@ def test_weights_pane_renders_rotates_and_follows_the_selection_in_jupyterlab(ju
             description="the sphere turned by a drag",
         )[0]
         cv2.imwrite(str(bh.artifact_dir() / "pane_handle1_turned.png"), turned)
+
+        # and zooms: the wheel brings the sphere closer, so it covers more of the canvas
+        def sphere_share(shot: np.ndarray) -> float:
+            return float((np.abs(shot.astype(int) - 0x20).max(axis=2) > 12).mean())  # the background is #202020
+
+        nb.page.mouse.move(cx, cy)
+        nb.page.mouse.wheel(0, -300)
+        closer = bh.wait_until(
+            lambda: (lambda s: (s,) if sphere_share(s) > sphere_share(turned) + 0.1 else None)(
+                cv2.imdecode(np.frombuffer(canvas.screenshot(), np.uint8), cv2.IMREAD_COLOR)
+            ),
+            timeout=10,
+            description="the sphere zoomed by the wheel",
+        )[0]
+        print(f"\npane: sphere covers {sphere_share(turned):.0%} of the canvas, {sphere_share(closer):.0%} after the wheel")
         nb.screenshot("pane")
         outside = [u for u in requests if not u.startswith(("http://127.0.0.1", "http://localhost", "data:", "blob:", "about:"))]
         assert outside == [], outside
