@@ -24,7 +24,7 @@ from .locate import interpolate
 from .moebius import Moebius
 from .warping import GridInverse, grid_homogeneous
 
-__all__ = ["NEGLIGIBLE", "PixelWeights", "blended_inverse", "grid_pixel_weights", "mesh_pixel_weights"]
+__all__ = ["NEGLIGIBLE", "PixelWeights", "blended_inverse", "blended_points", "grid_pixel_weights", "mesh_pixel_weights"]
 
 #: A control whose normalised weight stays below this over a block of rows is skipped there.
 NEGLIGIBLE = 1e-6
@@ -149,3 +149,36 @@ def blended_inverse(
         return np.angle(acc_xy), np.arctan2(acc_z, np.abs(acc_xy))
 
     return fn
+
+
+def blended_points(
+    inverses: Sequence[Moebius], vertices: NDArray[np.float64], faces: NDArray[np.int64], weights: NDArray[np.floating], xyz: NDArray
+) -> NDArray[np.float64]:
+    """The blended inverse map of eq. (2) at arbitrary output directions.
+
+    Parameters
+    ----------
+    inverses : sequence of Moebius
+        ``M_j⁻¹`` for the ``k`` controls.
+    vertices, faces : ndarray, shapes (n, 3) and (m, 3)
+        The mesh.
+    weights : ndarray, shape (n, k)
+        Normalised weights per vertex.
+    xyz : ndarray, shape (..., 3)
+        Output directions.
+
+    Returns
+    -------
+    ndarray of float64, shape (..., 2)
+        The input ``[lon, lat]`` (degrees) each direction shows.
+    """
+    from .locate import locate_points
+
+    xyz = np.asarray(xyz, dtype=np.float64)
+    flat = xyz.reshape(-1, 3)
+    face, bary = locate_points(vertices, faces, flat)
+    w = interpolate(np.asarray(weights, np.float64), faces, face, bary)
+    acc = np.zeros_like(flat)
+    for j, m in enumerate(inverses):
+        acc += w[:, [j]] * m.apply_xyz(flat)
+    return coords.xyz_to_lonlat(acc).reshape(xyz.shape[:-1] + (2,))

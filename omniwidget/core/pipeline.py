@@ -121,13 +121,9 @@ class Result:
         if self.weights is None:
             single = self.moebius if self.moebius is not None else Moebius.identity()
             return coords.xyz_to_lonlat(single.inverse.apply_xyz(xyz))
-        from .locate import interpolate, locate_points
+        from .blend import blended_points
 
-        flat = xyz.reshape(-1, 3)
-        face, bary = locate_points(self.vertices, self.faces, flat)
-        w = interpolate(self.weights, self.faces, face, bary)
-        acc = sum(w[:, [j]] * c.moebius.inverse.apply_xyz(flat) for j, c in enumerate(self.controls))
-        return coords.xyz_to_lonlat(acc).reshape(xyz.shape[:-1] + (2,))
+        return blended_points([c.moebius.inverse for c in self.controls], self.vertices, self.faces, self.weights, xyz)
 
     def forward_points(self, lonlat: ArrayLike, control: int, iterations: int = 8) -> NDArray[np.float64]:
         """Where input positions land in the output, by inverting the blend near a control.
