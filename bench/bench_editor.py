@@ -68,7 +68,9 @@ def kernel_side(repeat: int) -> None:
         warp(image, editor.document, warn=False)
         full.append(time.perf_counter() - start)
     print(f"scene: {len(scene.handles)} handles at {image.shape[1]} x {image.shape[0]}, preview {status['width']} px wide")
-    print(f"edit -> preview set on the widget: median {statistics.median(walls):.3f} s over {repeat} (target for the whole round trip: 1 s)")
+    print(
+        f"edit -> preview set on the widget: median {statistics.median(walls):.3f} s over {repeat} (target for the whole round trip: 1 s)"
+    )
     names = stages[0].keys()
     print("  stages (median s): " + ", ".join(f"{n} {statistics.median(s[n] for s in stages):.3f}" for n in names))
     print(f"reference, the full-size warp of the same handles: median {statistics.median(full):.3f} s")

@@ -34,6 +34,10 @@ DEMO_HANDLES = {
 }
 
 
+class _FramesFailed(Exception):
+    """Some frames of a batch were not warped; each was already reported on its own line."""
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line, not the whole usage text
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
@@ -44,13 +48,22 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"omniwidget {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    warp = sub.add_parser("warp", help="warp a panorama by a handles file", description="Warp a panorama by the handles in a JSON file.")
-    warp.add_argument("input", type=Path, help="equirectangular image (2:1)")
-    warp.add_argument("-H", "--handles", type=Path, required=True, help="handles file (JSON, see the README)")
-    warp.add_argument("-o", "--output", type=Path, required=True, help="output image (.png, .jpg, .tif, .npy)")
+    warp = sub.add_parser(
+        "warp",
+        help="warp panoramas by a handles file or a saved map",
+        description="Warp one panorama, or many frames alike (the map is computed once), by the handles in a JSON file or a saved map.",
+    )
+    warp.add_argument("input", type=Path, nargs="+", help="equirectangular image(s) (2:1); several: frames of one size")
+    source = warp.add_mutually_exclusive_group(required=True)
+    source.add_argument("-H", "--handles", type=Path, help="handles file (JSON, see the README)")
+    source.add_argument("--apply-map", type=Path, metavar="MAP", help="a map saved with --map (.npy) instead of handles")
+    warp.add_argument(
+        "-o", "--output", type=Path, required=True, help="output image (.png, .jpg, .tif, .npy); with several inputs a folder"
+    )
     warp.add_argument("--width", type=int, help="output width in pixels (even; default: the input's)")
     warp.add_argument("--map", type=Path, help="also save the inverse map: float32 (H, W, 2) input [lon, lat] per output pixel, .npy")
     warp.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
+    warp.add_argument("--workers", type=int, help="threads for many frames (default: CPUs + 1)")
 
     demo = sub.add_parser(
         "demo", help="before/after of the bundled panorama", description="Rectify lines of the bundled panorama and write a before/after."
@@ -80,24 +93,110 @@ def _warp_quietly(*args: Any, **kwargs: Any) -> Result:
     return result
 
 
+_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".npy")
+
+
 def _cmd_warp(args: argparse.Namespace) -> None:
     from .core.errors import ImageError
-    from .core.handles import load_handles
-    from .core.io import check_panorama, read_image, write_image
 
-    if args.output.resolve() == args.input.resolve():
-        raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
-    _check_output(args.output, (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".npy"), "output image")
     if args.map is not None:
         _check_output(args.map, (".npy",), "map file")
     if args.width is not None and (args.width < 2 or args.width % 2):
         raise ImageError(f"--width {args.width}: the width must be even and at least 2")
+    if args.workers is not None and args.workers < 1:
+        raise ImageError(f"--workers {args.workers}: at least one thread")
+    if len(args.input) == 1 and args.apply_map is None:
+        _warp_one(args)
+    else:
+        _warp_frames(args)
+
+
+def _warp_one(args: argparse.Namespace) -> None:
+    from .core.errors import ImageError
+    from .core.handles import load_handles
+    from .core.io import check_panorama, read_image, write_image
+
+    (source,) = args.input
+    if args.output.resolve() == source.resolve():
+        raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
+    _check_output(args.output, _IMAGE_SUFFIXES, "output image")
     handles = load_handles(args.handles)
-    image = check_panorama(read_image(args.input), str(args.input))
+    image = check_panorama(read_image(source), str(source))
     result = _warp_quietly(image, handles, width=args.width, order=args.order)
     if args.map is not None:
         write_image(args.map, result.inverse_map())  # .npy: the float32 array as it is
     write_image(args.output, result.image)
+
+
+def _frame_outputs(args: argparse.Namespace) -> list[Path]:
+    """Where each frame goes: ``-o`` itself for one input, else ``-o/<the input's name>``; checked before any work."""
+    from .core.errors import ImageError
+
+    inputs = args.input
+    if len(inputs) == 1:
+        outputs = [args.output]
+        _check_output(args.output, _IMAGE_SUFFIXES, "output image")
+    else:
+        if args.output.suffix.lower() in _IMAGE_SUFFIXES or (args.output.exists() and not args.output.is_dir()):
+            raise ImageError(f"{args.output}: with {len(inputs)} inputs, -o names a folder for their outputs")
+        if not args.output.parent.is_dir():
+            raise ImageError(f"{args.output}: the folder {args.output.parent} does not exist")
+        names = [p.name for p in inputs]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ImageError(f"inputs share the file name {twice[0]}: their outputs in {args.output} would overwrite each other")
+        outputs = [args.output / n for n in names]
+        unwritable = next((o for o in outputs if o.suffix.lower() not in _IMAGE_SUFFIXES), None)
+        if unwritable is not None:
+            raise ImageError(f"{unwritable}: outputs keep their input's name, and the output must end in {', '.join(_IMAGE_SUFFIXES)}")
+    sources = {p.resolve() for p in inputs}
+    clash = next((o for o in outputs if o.resolve() in sources), None)
+    if clash is not None:
+        raise ImageError(f"{clash}: the output would overwrite an input; choose another folder")
+    return outputs
+
+
+def _progress_bar(done: int, total: int) -> None:
+    width = 30
+    filled = round(width * done / total)
+    end = "\n" if done == total else ""
+    print(f"\romniwidget: [{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames", end=end, file=sys.stderr, flush=True)
+
+
+def _warp_frames(args: argparse.Namespace) -> None:
+    from .core.errors import ImageError
+    from .core.frames import load_map, map_coordinates, warp_frames
+    from .core.handles import load_handles
+    from .core.io import check_panorama, read_image, write_image
+
+    outputs = _frame_outputs(args)
+    handles = load_handles(args.handles) if args.handles is not None else None
+    saved = load_map(args.apply_map) if args.apply_map is not None else None
+    first = check_panorama(read_image(args.input[0]), str(args.input[0]))
+    start = time.perf_counter()
+    if saved is not None:
+        if args.width is not None and args.width != saved.shape[1]:
+            raise ImageError(f"--width {args.width}: the map {args.apply_map} makes frames {saved.shape[1]} wide")
+        inverse_map = saved
+    else:
+        inverse_map = _warp_quietly(first, handles, width=args.width, order=args.order).inverse_map()
+    coordinates = map_coordinates(inverse_map, first.shape[1])
+    map_seconds = time.perf_counter() - start
+    if args.map is not None:
+        write_image(args.map, inverse_map)
+    if len(outputs) > 1:
+        args.output.mkdir(exist_ok=True)
+    progress = _progress_bar if len(outputs) > 1 and sys.stderr.isatty() else None
+    report = warp_frames(args.input, outputs, coordinates, first.shape[:2], order=args.order, workers=args.workers, progress=progress)
+    h, w = coordinates.shape[:2]
+    print(
+        f"warped {len(report.written)} frame(s) to {w} x {h} in {report.seconds:.2f} s: {report.fps:.1f} frames per second "
+        f"(reading and writing included; the map took {map_seconds:.2f} s)"
+    )
+    if report.failed:
+        for _, why in report.failed:
+            print(f"omniwidget warp: error: {why}", file=sys.stderr)
+        raise _FramesFailed(f"{len(report.failed)} of {len(args.input)} frames were not warped (see above)")
 
 
 def _cmd_demo(args: argparse.Namespace) -> None:
@@ -137,6 +236,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     except OSError as exc:
         print(f"omniwidget {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except _FramesFailed as exc:
+        print(f"omniwidget {args.command}: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     return 0
 

@@ -106,7 +106,7 @@ def test_bad_inputs_give_one_line_and_exit_2(files, capsys):
         "must end in": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/o.xyz"],
         "map file must end in .npy": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/o.png", "--map", f"{d}/m.txt"],
         "--width 101: the width must be even": ["warp", f"{d}/in.png", "-H", f"{d}/h.json", "-o", f"{d}/o.png", "--width", "101"],
-        "the following arguments are required": ["warp", f"{d}/in.png", "-o", f"{d}/o.png"],
+        "one of the arguments -H/--handles --apply-map is required": ["warp", f"{d}/in.png", "-o", f"{d}/o.png"],
     }
     for message, argv in cases.items():
         if argv[0] == "warp" and "-H" not in argv:
@@ -180,3 +180,90 @@ def test_fuzzed_handles_files_never_give_a_traceback(files, capsys, data):
     assert code in (0, 2)
     assert (code == 0) == (err == "")
     (files / "fuzz.png").unlink(missing_ok=True)
+
+
+# --- many frames, one map --------------------------------------------------------------
+
+
+@pytest.fixture
+def frames(files):
+    """Five frames of one size: the fixture's panorama shifted in colour, as JPEG and PNG."""
+    base = read_image(files / "in.png")
+    paths = []
+    for i in range(5):
+        path = files / "frames" / f"f{i:02d}.{'jpg' if i % 2 else 'png'}"
+        path.parent.mkdir(exist_ok=True)
+        write_image(path, np.clip(base.astype(int) + 20 * i, 0, 255).astype(np.uint8))
+        paths.append(path)
+    return paths
+
+
+LINES = {"handles": [{"kind": "line", "start": [-4, 37.5], "end": [68, 36.5]}, {"kind": "line", "start": [-83, 12], "end": [-45.5, 12]}]}
+
+
+def test_many_frames_share_one_map_and_keep_their_names(files, frames, capsys):
+    (files / "lines.json").write_text(json.dumps(LINES))
+    out = files / "out"
+    argv = ["warp", *map(str, frames), "-H", str(files / "lines.json"), "-o", str(out), "--map", str(files / "m.npy")]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "warped 5 frame(s) to 256 x 128" in printed and "frames per second" in printed
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in frames)  # no temporary files either
+    # each frame as `omniwidget warp` of it alone makes it (the same blend; float32 coordinates either way)
+    for frame in (frames[0], frames[3]):
+        alone = files / f"alone{frame.suffix}"
+        assert main(["warp", str(frame), "-H", str(files / "lines.json"), "-o", str(alone)]) == 0
+        many, one = read_image(out / frame.name).astype(int), read_image(alone).astype(int)
+        tolerance = 0.5 if frame.suffix == ".png" else 2.0  # JPEG re-encoding
+        assert np.abs(many - one).mean() < tolerance, np.abs(many - one).mean()
+    # the saved map applied to the same frames gives the same bytes, on one thread or several
+    again = files / "again"
+    assert main(["warp", *map(str, frames), "--apply-map", str(files / "m.npy"), "-o", str(again), "--workers", "1"]) == 0
+    for frame in frames:
+        assert (again / frame.name).read_bytes() == (out / frame.name).read_bytes()
+
+
+def test_a_bad_frame_is_reported_and_the_others_are_written(files, frames, capsys):
+    (files / "lines.json").write_text(json.dumps(LINES))
+    (files / "frames" / "f02.png").write_bytes(b"broken")
+    write_image(files / "frames" / "f04.png", np.zeros((64, 128, 3), np.uint8))
+    out = files / "out"
+    assert main(["warp", *map(str, frames), "-H", str(files / "lines.json"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert any("f02.png: not an image" in line for line in err), err
+    assert any("f04.png: the frame is 128 x 64, the map is for 256 x 128" in line for line in err), err
+    assert err[-1].endswith("2 of 5 frames were not warped (see above)") and not any("Traceback" in line for line in err)
+    assert sorted(p.name for p in out.iterdir()) == ["f00.png", "f01.jpg", "f03.jpg"]
+
+
+def test_many_frames_refuse_what_would_lose_work(files, frames, capsys):
+    d = str(files)
+    np.save(files / "bad_map.npy", np.zeros((10, 10, 2), np.float32))
+    twin = files / "other" / frames[0].name
+    twin.parent.mkdir()
+    twin.write_bytes(frames[0].read_bytes())
+    f = [str(p) for p in frames]
+    cases = {
+        "with 5 inputs, -o names a folder": ["warp", *f, "-H", f"{d}/h.json", "-o", f"{d}/o.png"],
+        "inputs share the file name f00.png": ["warp", f[0], str(twin), "-H", f"{d}/h.json", "-o", f"{d}/out"],
+        "the output would overwrite an input": ["warp", *f, "-H", f"{d}/h.json", "-o", str(frames[0].parent)],
+        "bad_map.npy: a map must have shape (H, 2H, 2)": ["warp", *f, "--apply-map", f"{d}/bad_map.npy", "-o", f"{d}/out"],
+        "missing.npy: cannot read the map": ["warp", *f, "--apply-map", f"{d}/missing.npy", "-o", f"{d}/out"],
+    }
+    for message, argv in cases.items():
+        assert message in _run_bad(files, capsys, argv), message
+    np.save(files / "frames" / "../m.npy", np.zeros((64, 128, 2), np.float32))
+    assert "the map" in _run_bad(files, capsys, ["warp", f[0], "--apply-map", f"{d}/m.npy", "-o", f"{d}/o.png", "--width", "64"])
+
+
+def test_progress_is_reported_frame_by_frame(files, frames):
+    from omniwidget.core.frames import map_coordinates, warp_frames
+
+    calls = []
+    inverse = np.stack(np.meshgrid(*coords.grid_lonlat(256)), axis=-1)
+    report = warp_frames(
+        frames, [files / f"p{i}.png" for i in range(5)], map_coordinates(inverse, 256), (128, 256), progress=lambda *a: calls.append(a)
+    )
+    assert calls == [(i, 5) for i in range(1, 6)] and len(report.written) == 5 and report.fps > 0
+    # the identity map gives each frame back
+    assert np.array_equal(read_image(files / "p0.png"), read_image(frames[0]))
