@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import coords
 from ._checks import whole_number
 
-__all__ = ["DEGENERATE", "EDGE_TOLERANCE", "UNIT_TOLERANCE", "interpolate", "locate_grid", "locate_points"]
+__all__ = ["DEGENERATE", "EDGE_TOLERANCE", "UNIT_TOLERANCE", "barycentric", "interpolate", "locate_faces", "locate_grid", "locate_points"]
 
 #: A direction within this distance (radians) outside a face's edge plane still counts as in it,
 #: so directions on shared edges are never lost to rounding.
@@ -142,7 +142,27 @@ def _bary_from_planes(s0: FloatArray, s1: FloatArray, s2: FloatArray) -> FloatAr
 
 def _bary(mesh: _Mesh, face: IntArray, p: FloatArray) -> FloatArray:
     """Barycentric coordinates of directions ``p`` (N, 3) in faces ``face`` (N,)."""
-    s = np.einsum("nkj,nj->nk", mesh.normals[face], p)
+    return barycentric(mesh.normals, face, p)
+
+
+def barycentric(planes: ArrayLike, face: ArrayLike, xyz: ArrayLike) -> FloatArray:
+    """Barycentric coordinates of directions in the faces that hold them, from the faces' edge planes.
+
+    Parameters
+    ----------
+    planes : array_like, shape (m, 3, 3)
+        Edge planes of the faces (:func:`locate_faces`).
+    face : array_like of int, shape (N,)
+        The face of each direction (from :func:`locate_faces` or :func:`locate_points`).
+    xyz : array_like, shape (N, 3)
+        The directions.
+
+    Returns
+    -------
+    ndarray of float64, shape (N, 3)
+        Nonnegative, summing to 1.
+    """
+    s = np.einsum("nkj,nj->nk", np.asarray(planes)[np.asarray(face)], np.asarray(xyz, dtype=np.float64))
     return _bary_from_planes(s[:, 0], s[:, 1], s[:, 2])
 
 
@@ -392,6 +412,53 @@ def _runs(mesh: _Mesh, width: int, cos_lat: FloatArray, sin_lat: FloatArray) -> 
     return run_face, flat_start, length
 
 
+def _grid_faces(mesh: _Mesh, width: int) -> tuple[NDArray[np.int32], FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Each pixel's face (H, W), and the grid's ``cos lon, sin lon`` (W,) and ``cos lat, sin lat`` (H,)."""
+    lon, lat = coords.grid_lonlat(width)
+    height = width // 2
+    # Pixel directions factor as cos(lat) (cos lon, sin lon, 0) + sin(lat) z: the products
+    # coords.lonlat_to_xyz forms, from W + H trigonometric values.
+    east = coords.lonlat_to_xyz(np.stack([lon, np.zeros_like(lon)], axis=-1))
+    meridian = coords.lonlat_to_xyz(np.stack([np.zeros_like(lat), lat], axis=-1))
+    cos_lon, sin_lon = east[:, 0], east[:, 1]
+    cos_lat, sin_lat = meridian[:, 0], meridian[:, 2]
+
+    run_face, flat_start, length = _runs(mesh, width, cos_lat, sin_lat)
+    face = np.full(height * width, -1, np.int32)
+    offsets = np.cumsum(length) - length
+    face[np.repeat(flat_start - offsets, length) + np.arange(int(length.sum()))] = np.repeat(run_face.astype(np.int32), length)
+    missed = np.flatnonzero(face < 0)
+    if len(missed):  # only by rounding far beyond EDGE_TOLERANCE; never expected
+        rows, cols = np.divmod(missed, width)
+        p = np.stack([cos_lat[rows] * cos_lon[cols], cos_lat[rows] * sin_lon[cols], sin_lat[rows]], axis=-1)
+        face[missed] = _locate(mesh, p)
+    return face.reshape(height, width), cos_lon, sin_lon, cos_lat, sin_lat
+
+
+def locate_faces(vertices: ArrayLike, faces: ArrayLike, width: int) -> tuple[NDArray[np.int32], FloatArray]:
+    """The face of every pixel centre of an equirectangular grid, and the mesh's edge planes.
+
+    :func:`locate_grid` without the barycentric coordinates, for callers that compute them
+    themselves per pixel (:mod:`omniwidget.core._kernels`).
+
+    Parameters
+    ----------
+    vertices, faces, width
+        As in :func:`locate_grid`.
+
+    Returns
+    -------
+    face : ndarray of int32, shape (H, W)
+        As in :func:`locate_grid`.
+    planes : ndarray of float64, shape (m, 3, 3)
+        ``planes[f, k] = v_k × v_{k+1}`` of face ``f``'s corners: a direction ``p`` has
+        barycentric coordinates ``b_i ∝ max(p · planes[f, i + 1], 0)`` (indices mod 3).
+    """
+    width = whole_number(width, "width", 2, even=True)
+    mesh = _prepare(vertices, faces)
+    return _grid_faces(mesh, width)[0], mesh.normals
+
+
 def locate_grid(vertices: ArrayLike, faces: ArrayLike, width: int) -> tuple[NDArray[np.int32], NDArray[np.float32]]:
     """The face and barycentric coordinates of every pixel centre of an equirectangular grid.
 
@@ -428,26 +495,9 @@ def locate_grid(vertices: ArrayLike, faces: ArrayLike, width: int) -> tuple[NDAr
     per-pixel values.
     """
     width = whole_number(width, "width", 2, even=True)
-    lon, lat = coords.grid_lonlat(width)
     mesh = _prepare(vertices, faces)
     height = width // 2
-    # Pixel directions factor as cos(lat) (cos lon, sin lon, 0) + sin(lat) z: the products
-    # coords.lonlat_to_xyz forms, from W + H trigonometric values.
-    east = coords.lonlat_to_xyz(np.stack([lon, np.zeros_like(lon)], axis=-1))
-    meridian = coords.lonlat_to_xyz(np.stack([np.zeros_like(lat), lat], axis=-1))
-    cos_lon, sin_lon = east[:, 0], east[:, 1]
-    cos_lat, sin_lat = meridian[:, 0], meridian[:, 2]
-
-    run_face, flat_start, length = _runs(mesh, width, cos_lat, sin_lat)
-    face = np.full(height * width, -1, np.int32)
-    offsets = np.cumsum(length) - length
-    face[np.repeat(flat_start - offsets, length) + np.arange(int(length.sum()))] = np.repeat(run_face.astype(np.int32), length)
-    missed = np.flatnonzero(face < 0)
-    if len(missed):  # only by rounding far beyond EDGE_TOLERANCE; never expected
-        rows, cols = np.divmod(missed, width)
-        p = np.stack([cos_lat[rows] * cos_lon[cols], cos_lat[rows] * sin_lon[cols], sin_lat[rows]], axis=-1)
-        face[missed] = _locate(mesh, p)
-    face = face.reshape(height, width)
+    face, cos_lon, sin_lon, cos_lat, sin_lat = _grid_faces(mesh, width)
 
     # Barycentric coordinates, b_i ∝ s_{i+1}, in blocks of rows with per-edge face tables.
     table = [np.ascontiguousarray(mesh.normals[:, k, j]) for k in (1, 2, 0) for j in range(3)]

@@ -214,6 +214,28 @@ def _fold_warning(handles: Handles, controls: tuple[Control, ...], pixel_weights
     )
 
 
+def _exact_inverse(
+    inverses: list[Moebius], vertices: NDArray[np.float64], faces: NDArray[np.int64], weights: NDArray[np.float64], width: int
+) -> GridInverse:
+    """The blended map at every pixel of the output grid, in double precision, located on the mesh when first asked."""
+    import threading
+
+    from .blend import blended_inverse, mesh_pixel_weights
+    from .locate import locate_grid
+
+    lock = threading.Lock()
+    cache: list[GridInverse] = []
+
+    def fn(lon: NDArray, lat: NDArray, rows: slice) -> tuple[NDArray, NDArray]:
+        with lock:
+            if not cache:
+                face, bary = locate_grid(vertices, faces, width)
+                cache.append(blended_inverse(inverses, mesh_pixel_weights(faces, weights, face, bary, np.float64), precision="double"))
+        return cache[0](lon, lat, rows)
+
+    return fn
+
+
 def warp(
     image: NDArray, handles: Handles, *, width: int | None = None, order: Order = "bilinear", samples: int = SAMPLES, warn: bool = True
 ) -> Result:
@@ -264,9 +286,10 @@ def warp(
         no_folds = FoldOver(np.zeros(out.shape[:2], dtype=bool), 0.0)  # a Möbius map is one-to-one
         return Result(out, handles, constraints, None, None, None, None, None, inverse, timings, (), image.shape[1], no_folds)
 
+    from . import _kernels
     from .bbw import bbw, normalize_rows
     from .blend import blended_inverse, mesh_pixel_weights
-    from .locate import interpolate, locate_grid
+    from .locate import barycentric, interpolate, locate_faces, locate_grid
     from .mesh import adaptive_mesh
 
     problems_before = _crossing_lines(constraints)
@@ -276,20 +299,39 @@ def warp(
     problems = problems_before + problems
     weights = normalize_rows(bbw(mesh.vertices, mesh.faces, b, bc))
     lap("weights")
-    face, bary = locate_grid(mesh.vertices, mesh.faces, width)
-    lap("locate")
     inverses = [m.inverse for m in maps]
-    coordinates = remap_coordinates(blended_inverse(inverses, mesh_pixel_weights(mesh.faces, weights, face, bary)), width, image.shape[1])
-    lap("blend")
-    out = remap(pad_panorama(image), coordinates, order)
-    lap("resampling")
-    step = np.float32(360.0 / image.shape[1])  # back to [lon, lat], in float32 (enough for the signs)
-    folds = fold_over((coordinates - np.float32(PAD - 0.5)) * (step * np.array([1, -1], np.float32)) + np.array([-180, 90], np.float32))
-    if folds.area >= FOLD_WARNING_AREA:
-        at = interpolate(weights, mesh.faces, face[folds.mask], bary[folds.mask])
-        problems.append(_fold_warning(handles, constraints.controls, at, folds.area))
+    if _kernels.available():
+        face, planes = locate_faces(mesh.vertices, mesh.faces, width)
+        lap("locate")
+        coordinates = _kernels.blend_coordinates(face, planes, mesh.faces, weights, inverses, image.shape[1])
+        inverse = _exact_inverse(inverses, mesh.vertices, mesh.faces, weights, width)  # located again when first asked
+        lap("blend")
+        out = remap(pad_panorama(image), coordinates, order)
+        lap("resampling")
+        folds = FoldOver.from_mask(_kernels.fold_mask(coordinates, image.shape[1]))
+        if folds.area >= FOLD_WARNING_AREA:
+            rows, cols = np.nonzero(folds.mask)
+            lon, lat = coords.grid_lonlat(width)
+            at = barycentric(planes, face[rows, cols], coords.lonlat_to_xyz(np.stack([lon[cols], lat[rows]], axis=-1)))
+            problems.append(
+                _fold_warning(handles, constraints.controls, interpolate(weights, mesh.faces, face[rows, cols], at), folds.area)
+            )
+    else:
+        face, bary = locate_grid(mesh.vertices, mesh.faces, width)
+        lap("locate")
+        coordinates = remap_coordinates(
+            blended_inverse(inverses, mesh_pixel_weights(mesh.faces, weights, face, bary)), width, image.shape[1]
+        )
+        inverse = blended_inverse(inverses, mesh_pixel_weights(mesh.faces, weights, face, bary, np.float64), precision="double")
+        lap("blend")
+        out = remap(pad_panorama(image), coordinates, order)
+        lap("resampling")
+        step = np.float32(360.0 / image.shape[1])  # back to [lon, lat], in float32 (enough for the signs)
+        folds = fold_over((coordinates - np.float32(PAD - 0.5)) * (step * np.array([1, -1], np.float32)) + np.array([-180, 90], np.float32))
+        if folds.area >= FOLD_WARNING_AREA:
+            at = interpolate(weights, mesh.faces, face[folds.mask], bary[folds.mask])
+            problems.append(_fold_warning(handles, constraints.controls, at, folds.area))
     lap("fold check")
-    inverse = blended_inverse(inverses, mesh_pixel_weights(mesh.faces, weights, face, bary, np.float64), precision="double")
     for p in problems if warn else ():
         warnings.warn(p, BlendWarning, stacklevel=2)
     return Result(

@@ -230,6 +230,20 @@ class FoldOver:
     mask: NDArray[np.bool_]
     area: float
 
+    @classmethod
+    def from_mask(cls, mask: NDArray[np.bool_]) -> FoldOver:
+        """The fold-over of an equirectangular mask of turned-over pixels, its area weighted by row.
+
+        Parameters
+        ----------
+        mask : ndarray of bool, shape (H, 2H)
+
+        Returns
+        -------
+        FoldOver
+        """
+        return cls(mask, float(np.sum(mask * _area(len(mask))[:, None])))
+
 
 def fold_over(inverse_map: ArrayLike, pole_margin: float = 1.0) -> FoldOver:
     """Output pixels where the inverse map's Jacobian determinant is zero or negative.
@@ -262,7 +276,7 @@ def fold_over(inverse_map: ArrayLike, pole_margin: float = 1.0) -> FoldOver:
     d_lon_north, d_lat_north = wrapped(lon[:-2] - lon[2:]), lat[:-2] - lat[2:]
     mask = np.zeros(lon.shape, dtype=bool)
     mask[1:-1] = (d_lon_east * d_lat_north - d_lon_north * d_lat_east <= 0) & (np.abs(lat[1:-1]) < 90 - pole_margin)
-    return FoldOver(mask, float(np.sum(mask * _area(len(mask))[:, None])))
+    return FoldOver.from_mask(mask)
 
 
 def _bilinear(src: NDArray[np.float64], x: NDArray, y: NDArray) -> tuple[NDArray, NDArray, NDArray]:

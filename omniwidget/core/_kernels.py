@@ -1,0 +1,209 @@
+"""Compiled per-pixel kernels (numba), used by :func:`omniwidget.core.pipeline.warp` when numba is installed.
+
+The numpy path of the blend (:mod:`omniwidget.core.blend`) makes a pass over the whole
+image per control and per operation; here each output pixel is done in one go: its
+barycentric coordinates in its face, its weights, the Möbius maps whose weight is not
+negligible there, the normalised sum of eq. (2) and its source pixel. The fold check
+(:func:`omniwidget.core.quality.fold_over`'s rule) is one more pass. The kernels release
+the GIL and run on blocks of rows in threads (not numba's own parallel layer, which does
+not allow two threads to launch kernels at once, as the editor's preview and a full-size
+warp may).
+
+Without numba (``pip install numba``, or the ``fast`` extra), or with the environment
+variable ``OMNIWIDGET_NUMBA=0``, :func:`available` is False and the numpy path runs; the
+two agree to float32 rounding (``tests/test_kernels.py``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from functools import cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import coords
+from .moebius import Moebius
+from .warping import PAD, _run_blocks
+
+__all__ = ["available", "blend_coordinates", "fold_mask"]
+
+#: Weights at most this are skipped (the numpy path skips a control only where it is below
+#: :data:`omniwidget.core.blend.NEGLIGIBLE` over a whole block of rows; both are far below
+#: what a pixel can show).
+_NEGLIGIBLE = 1e-9
+
+
+@cache
+def available() -> bool:
+    """Whether the compiled kernels can be used: numba imports and ``OMNIWIDGET_NUMBA`` is not ``0``."""
+    if os.environ.get("OMNIWIDGET_NUMBA", "1") == "0":
+        return False
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+@cache
+def _compiled() -> tuple:
+    from numba import njit
+
+    @njit(nogil=True, cache=True)
+    def blend_rows(r0, r1, face, planes, corners, weights, mats, cos_lon, sin_lon, cos_lat, sin_lat, kx, x0, y0, out):  # pragma: no cover
+        k = weights.shape[1]
+        for r in range(r0, r1):
+            cl = cos_lat[r]
+            z = sin_lat[r]
+            for c in range(face.shape[1]):
+                f = face[r, c]
+                x = cl * cos_lon[c]
+                y = cl * sin_lon[c]
+                s0 = max(planes[f, 0, 0] * x + planes[f, 0, 1] * y + planes[f, 0, 2] * z, 0.0)
+                s1 = max(planes[f, 1, 0] * x + planes[f, 1, 1] * y + planes[f, 1, 2] * z, 0.0)
+                s2 = max(planes[f, 2, 0] * x + planes[f, 2, 1] * y + planes[f, 2, 2] * z, 0.0)
+                total = s0 + s1 + s2
+                if total <= 0.0:
+                    total = 1.0
+                b0, b1, b2 = s1 / total, s2 / total, s0 / total  # b_i ∝ s_{i+1}
+                i0, i1, i2 = corners[f, 0], corners[f, 1], corners[f, 2]
+                if z <= 0.0:  # [u : v] as coords.xyz_to_homogeneous chooses it
+                    ur, ui, vr, vi = x, y, 1.0 - z, 0.0
+                else:
+                    ur, ui, vr, vi = 1.0 + z, 0.0, x, -y
+                sum_r = 0.0
+                sum_i = 0.0
+                sum_z = 0.0
+                for j in range(k):
+                    w = b0 * weights[i0, j] + b1 * weights[i1, j] + b2 * weights[i2, j]
+                    if w <= _NEGLIGIBLE:
+                        continue
+                    ar, ai, br, bi = mats[j, 0], mats[j, 1], mats[j, 2], mats[j, 3]
+                    cr, ci, dr, di = mats[j, 4], mats[j, 5], mats[j, 6], mats[j, 7]
+                    big_ur = ar * ur - ai * ui + br * vr - bi * vi
+                    big_ui = ar * ui + ai * ur + br * vi + bi * vr
+                    big_vr = cr * ur - ci * ui + dr * vr - di * vi
+                    big_vi = cr * ui + ci * ur + dr * vi + di * vr
+                    uu = big_ur * big_ur + big_ui * big_ui
+                    vv = big_vr * big_vr + big_vi * big_vi
+                    share = w / (uu + vv)  # the unit vector (2 U V̄, |U|² - |V|²) / (|U|² + |V|²)
+                    sum_r += 2.0 * share * (big_ur * big_vr + big_ui * big_vi)
+                    sum_i += 2.0 * share * (big_ui * big_vr - big_ur * big_vi)
+                    sum_z += share * (uu - vv)
+                lon = math.atan2(sum_i, sum_r)
+                lat = math.atan2(sum_z, math.sqrt(sum_r * sum_r + sum_i * sum_i))
+                out[r, c, 0] = lon * kx + x0
+                out[r, c, 1] = y0 - lat * kx
+
+    @njit(nogil=True, cache=True)
+    def fold_rows(r0, r1, coordinates, src_width, offset, top, bottom, mask):  # pragma: no cover
+        width = coordinates.shape[1]
+        half = 0.5 * src_width
+        for r in range(max(r0, 1), min(r1, coordinates.shape[0] - 1)):
+            for c in range(width):
+                east = c + 1 if c + 1 < width else 0
+                west = c - 1 if c > 0 else width - 1
+                dx_e = coordinates[r, east, 0] - coordinates[r, west, 0]
+                if dx_e > half:  # longitudes wrap
+                    dx_e -= src_width
+                elif dx_e < -half:
+                    dx_e += src_width
+                dy_e = coordinates[r, east, 1] - coordinates[r, west, 1]
+                dx_n = coordinates[r - 1, c, 0] - coordinates[r + 1, c, 0]
+                if dx_n > half:
+                    dx_n -= src_width
+                elif dx_n < -half:
+                    dx_n += src_width
+                dy_n = coordinates[r - 1, c, 1] - coordinates[r + 1, c, 1]
+                y = coordinates[r, c, 1] - offset
+                # lon grows with x, lat against y: the determinant in [lon, lat] is minus this one
+                mask[r, c] = (dx_e * dy_n - dx_n * dy_e >= 0.0) and top < y < bottom
+
+    return blend_rows, fold_rows
+
+
+def _matrices(inverses: Sequence[Moebius]) -> NDArray[np.float64]:
+    m = np.array([np.asarray(i.matrix, np.complex128).ravel() for i in inverses])
+    return np.ascontiguousarray(np.stack([m.real, m.imag], axis=-1).reshape(len(inverses), 8))
+
+
+def blend_coordinates(
+    face: NDArray[np.int32],
+    planes: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    weights: NDArray[np.floating],
+    inverses: Sequence[Moebius],
+    src_width: int,
+) -> NDArray[np.float32]:
+    """Source pixel coordinates of every output pixel under the blend of eq. (2).
+
+    Parameters
+    ----------
+    face, planes : ndarray
+        From :func:`omniwidget.core.locate.locate_faces`: (H, W) int32 and (m, 3, 3) float64.
+    faces : ndarray of int64, shape (m, 3)
+    weights : ndarray, shape (n, k)
+        Normalised weights per mesh vertex.
+    inverses : sequence of Moebius
+        ``M_j⁻¹`` of the ``k`` controls.
+    src_width : int
+        Width of the source panorama.
+
+    Returns
+    -------
+    ndarray of float32, shape (H, W, 2)
+        What :func:`omniwidget.core.warping.remap_coordinates` returns for the numpy blend.
+    """
+    blend_rows, _ = _compiled()
+    height, width = face.shape
+    lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
+    out = np.empty((height, width, 2), np.float32)
+    kx = src_width / (2 * math.pi)
+    args = (
+        np.ascontiguousarray(face),
+        np.ascontiguousarray(planes, np.float64),
+        np.ascontiguousarray(faces, np.int64),
+        np.ascontiguousarray(weights, np.float32),
+        _matrices(inverses),
+        np.cos(lon),
+        np.sin(lon),
+        np.cos(lat),
+        np.sin(lat),
+        kx,
+        src_width / 2 - 0.5 + PAD,
+        src_width / 4 - 0.5 + PAD,
+        out,
+    )
+    _run_blocks(height, lambda rows: blend_rows(rows.start, rows.stop, *args))
+    return out
+
+
+def fold_mask(coordinates: NDArray[np.float32], src_width: int, pole_margin: float = 1.0) -> NDArray[np.bool_]:
+    """Output pixels where the map turns the image over, from its source pixel coordinates.
+
+    The rule of :func:`omniwidget.core.quality.fold_over` (Jacobian determinant <= 0 by
+    central differences, longitudes wrapped; first and last rows and sources within
+    ``pole_margin`` degrees of a pole never marked), on the coordinates
+    :func:`blend_coordinates` returns.
+
+    Parameters
+    ----------
+    coordinates : ndarray of float32, shape (H, W, 2)
+    src_width : int
+    pole_margin : float
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W)
+    """
+    _, fold_rows = _compiled()
+    mask = np.zeros(coordinates.shape[:2], dtype=bool)
+    per_degree = src_width / 360.0
+    top = pole_margin * per_degree - 0.5
+    bottom = (180.0 - pole_margin) * per_degree - 0.5
+    c = np.ascontiguousarray(coordinates)
+    _run_blocks(len(mask), lambda rows: fold_rows(rows.start, rows.stop, c, float(src_width), float(PAD), top, bottom, mask))
+    return mask

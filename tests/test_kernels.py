@@ -1,0 +1,98 @@
+"""The compiled per-pixel kernels (numba) against the numpy path they replace."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from omniwidget.core import _kernels, coords
+from omniwidget.core.blend import blended_inverse, mesh_pixel_weights
+from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.core.locate import barycentric, locate_faces, locate_grid
+from omniwidget.core.pipeline import warp
+from omniwidget.core.quality import fold_over
+from omniwidget.core.scenes import mark_lines, synthetic_room
+from omniwidget.core.warping import PAD, remap_coordinates
+
+pytestmark = pytest.mark.skipif(not _kernels.available(), reason="numba is not installed (pip install numba)")
+
+W = 512
+
+
+@pytest.fixture(scope="module")
+def room():
+    """Lines only (they fold the far field), a fixed cage and a moved point: every kind of pixel."""
+    scene = synthetic_room(W, size=(4.0, 3.0, 3.0), camera=(0.3, -0.2, -1.0), yaw=37.0)
+    lines = mark_lines(scene, 8, seed=3, min_bend=5.0 * W / 2048)
+    cage = CageHandle(((-150.0, -20.0), (-120.0, -20.0), (-120.0, 10.0), (-150.0, 10.0)))
+    point = PointHandle((-60.0, -30.0), target=(-52.0, -26.0), scale=1.3, rotation=20.0)
+    doc = Handles((*(LineHandle(line.start, line.end) for line in lines), cage, point), Options(rectify="all"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = warp(scene.image, doc)
+    return scene, doc, result
+
+
+def _wrapped(d: np.ndarray, src_width: int) -> np.ndarray:
+    d = d.copy()
+    d[..., 0] = (d[..., 0] + src_width / 2) % src_width - src_width / 2
+    return d
+
+
+def test_blend_kernel_gives_the_numpy_blends_coordinates(room):
+    _, _, result = room
+    inverses = [c.moebius.inverse for c in result.controls]
+    face, planes = locate_faces(result.vertices, result.faces, W)
+    grid_face, bary = locate_grid(result.vertices, result.faces, W)
+    assert np.array_equal(face, grid_face)
+    ours = _kernels.blend_coordinates(face, planes, result.faces, result.weights, inverses, W)
+    numpy_path = remap_coordinates(blended_inverse(inverses, mesh_pixel_weights(result.faces, result.weights, face, bary)), W, W)
+    exact = remap_coordinates(result.inverse, W, W)  # float64 all the way, rounded to float32 at the end
+    assert np.abs(_wrapped(ours - exact, W)).max() < 2e-3
+    assert np.abs(_wrapped(numpy_path - exact, W)).max() < 1e-2  # single-precision complex arithmetic
+    assert ours.dtype == np.float32 and ours.shape == (W // 2, W, 2)
+
+
+def test_fold_kernel_marks_what_fold_over_marks(room):
+    _, _, result = room
+    coordinates = remap_coordinates(result.inverse, W, W)
+    lonlat = (coordinates.astype(np.float64) - (PAD - 0.5)) * (360.0 / W) * np.array([1, -1]) + np.array([-180, 90])
+    reference = fold_over(lonlat)
+    ours = _kernels.fold_mask(coordinates, W)
+    assert reference.area > 1e-4, "the room should fold somewhere far from its lines"
+    assert np.count_nonzero(ours != reference.mask) <= 2, np.count_nonzero(ours != reference.mask)
+
+
+def test_warp_with_and_without_the_kernels_agree(room, monkeypatch):
+    scene, doc, fast = room
+    monkeypatch.setattr(_kernels, "available", lambda: False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        slow = warp(scene.image, doc)
+    assert "locate" in slow.timings and "locate" in fast.timings
+    difference = np.abs(fast.image.astype(int) - slow.image.astype(int))
+    assert difference.mean() < 0.5 and difference.max() <= 2, (difference.mean(), difference.max())
+    assert abs(fast.folds.area - slow.folds.area) < 1e-5 and fast.warnings == slow.warnings
+    assert np.array_equal(fast.inverse_map(np.float64), slow.inverse_map(np.float64))  # the measured map is the exact one either way
+
+
+def test_barycentric_from_planes_matches_locate_grid(room):
+    _, _, result = room
+    face, planes = locate_faces(result.vertices, result.faces, W)
+    _, bary = locate_grid(result.vertices, result.faces, W)
+    lon, lat = coords.grid_lonlat(W)
+    rows, cols = np.arange(0, W // 2, 7), np.arange(0, W, 11)
+    rr, cc = np.meshgrid(rows, cols, indexing="ij")
+    ours = barycentric(planes, face[rr, cc].ravel(), coords.lonlat_to_xyz(np.stack([lon[cc], lat[rr]], axis=-1)).reshape(-1, 3))
+    np.testing.assert_allclose(ours, bary[rr, cc].reshape(-1, 3), atol=1e-6)
+
+
+def test_the_kernels_can_be_switched_off(monkeypatch):
+    _kernels.available.cache_clear()
+    try:
+        monkeypatch.setenv("OMNIWIDGET_NUMBA", "0")
+        assert not _kernels.available()
+    finally:
+        _kernels.available.cache_clear()
+        monkeypatch.delenv("OMNIWIDGET_NUMBA")
+    assert _kernels.available()
