@@ -96,3 +96,21 @@ def test_the_kernels_can_be_switched_off(monkeypatch):
         _kernels.available.cache_clear()
         monkeypatch.delenv("OMNIWIDGET_NUMBA")
     assert _kernels.available()
+
+
+def test_painting_and_strongest_weights_match_numpy(room, monkeypatch):
+    _, _, result = room
+    face, planes = locate_faces(result.vertices, result.faces, W)
+    with monkeypatch.context() as m:
+        m.setattr(_kernels, "available", lambda: False)
+        numpy_face, _ = locate_faces(result.vertices, result.faces, W)
+    assert np.array_equal(face, numpy_face)
+    mask = result.folds.mask
+    assert mask.any()
+    rows, cols = np.nonzero(mask)
+    lon, lat = coords.grid_lonlat(W)
+    at = barycentric(planes, face[rows, cols], coords.lonlat_to_xyz(np.stack([lon[cols], lat[rows]], axis=-1)))
+    from omniwidget.core.locate import interpolate
+
+    expected = interpolate(result.weights, result.faces, face[rows, cols], at).max(axis=0)
+    np.testing.assert_allclose(_kernels.strongest_weights(mask, face, planes, result.faces, result.weights), expected, atol=1e-12)

@@ -28,7 +28,7 @@ from . import coords
 from .moebius import Moebius
 from .warping import PAD, _run_blocks
 
-__all__ = ["available", "blend_coordinates", "fold_mask"]
+__all__ = ["available", "blend_coordinates", "fold_mask", "paint", "strongest_weights"]
 
 #: Weights at most this are skipped (the numpy path skips a control only where it is below
 #: :data:`omniwidget.core.blend.NEGLIGIBLE` over a whole block of rows; both are far below
@@ -122,7 +122,34 @@ def _compiled() -> tuple:
                 # lon grows with x, lat against y: the determinant in [lon, lat] is minus this one
                 mask[r, c] = (dx_e * dy_n - dx_n * dy_e >= 0.0) and top < y < bottom
 
-    return blend_rows, fold_rows
+    @njit(nogil=True, cache=True)
+    def paint_runs(run_face, flat_start, length, out):  # pragma: no cover
+        for i in range(run_face.shape[0]):
+            start = flat_start[i]
+            for j in range(start, start + length[i]):
+                out[j] = run_face[i]
+
+    @njit(nogil=True, cache=True)
+    def strongest(rows, cols, face, planes, corners, weights, cos_lon, sin_lon, cos_lat, sin_lat, out):  # pragma: no cover
+        for n in range(rows.shape[0]):
+            r, c = rows[n], cols[n]
+            f = face[r, c]
+            x = cos_lat[r] * cos_lon[c]
+            y = cos_lat[r] * sin_lon[c]
+            z = sin_lat[r]
+            s0 = max(planes[f, 0, 0] * x + planes[f, 0, 1] * y + planes[f, 0, 2] * z, 0.0)
+            s1 = max(planes[f, 1, 0] * x + planes[f, 1, 1] * y + planes[f, 1, 2] * z, 0.0)
+            s2 = max(planes[f, 2, 0] * x + planes[f, 2, 1] * y + planes[f, 2, 2] * z, 0.0)
+            total = s0 + s1 + s2
+            if total <= 0.0:
+                total = 1.0
+            i0, i1, i2 = corners[f, 0], corners[f, 1], corners[f, 2]
+            for j in range(weights.shape[1]):
+                w = (s1 * weights[i0, j] + s2 * weights[i1, j] + s0 * weights[i2, j]) / total
+                if w > out[j]:
+                    out[j] = w
+
+    return blend_rows, fold_rows, paint_runs, strongest
 
 
 def _matrices(inverses: Sequence[Moebius]) -> NDArray[np.float64]:
@@ -157,7 +184,7 @@ def blend_coordinates(
     ndarray of float32, shape (H, W, 2)
         What :func:`omniwidget.core.warping.remap_coordinates` returns for the numpy blend.
     """
-    blend_rows, _ = _compiled()
+    blend_rows = _compiled()[0]
     height, width = face.shape
     lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
     out = np.empty((height, width, 2), np.float32)
@@ -199,7 +226,7 @@ def fold_mask(coordinates: NDArray[np.float32], src_width: int, pole_margin: flo
     -------
     ndarray of bool, shape (H, W)
     """
-    _, fold_rows = _compiled()
+    fold_rows = _compiled()[1]
     mask = np.zeros(coordinates.shape[:2], dtype=bool)
     per_degree = src_width / 360.0
     top = pole_margin * per_degree - 0.5
@@ -207,3 +234,59 @@ def fold_mask(coordinates: NDArray[np.float32], src_width: int, pole_margin: flo
     c = np.ascontiguousarray(coordinates)
     _run_blocks(len(mask), lambda rows: fold_rows(rows.start, rows.stop, c, float(src_width), float(PAD), top, bottom, mask))
     return mask
+
+
+def paint(run_face: NDArray[np.int64], flat_start: NDArray[np.int64], length: NDArray[np.int64], size: int) -> NDArray[np.int32]:
+    """Paint runs of pixels with their faces: what :func:`omniwidget.core.locate.locate_faces` does, without index arrays.
+
+    Parameters
+    ----------
+    run_face, flat_start, length : ndarray of int64, shape (r,)
+        Run ``i`` gives ``length[i]`` pixels from the flat index ``flat_start[i]`` on the face ``run_face[i]``.
+    size : int
+        Pixels in all.
+
+    Returns
+    -------
+    ndarray of int32, shape (size,)
+        -1 where no run reaches.
+    """
+    out = np.full(size, -1, np.int32)
+    _compiled()[2](run_face.astype(np.int32), flat_start.astype(np.int64), length.astype(np.int64), out)
+    return out
+
+
+def strongest_weights(
+    mask: NDArray[np.bool_], face: NDArray[np.int32], planes: NDArray[np.float64], faces: NDArray[np.int64], weights: NDArray[np.floating]
+) -> NDArray[np.float64]:
+    """Each control's largest weight over the masked pixels (for naming the handles where a warp folds).
+
+    Parameters
+    ----------
+    mask : ndarray of bool, shape (H, W)
+    face, planes : ndarray
+        From :func:`omniwidget.core.locate.locate_faces`.
+    faces : ndarray of int64, shape (m, 3)
+    weights : ndarray, shape (n, k)
+
+    Returns
+    -------
+    ndarray of float64, shape (k,)
+    """
+    rows, cols = np.nonzero(mask)
+    lon, lat = (np.radians(x) for x in coords.grid_lonlat(mask.shape[1]))
+    out = np.zeros(weights.shape[1])
+    _compiled()[3](
+        rows,
+        cols,
+        face,
+        np.ascontiguousarray(planes, np.float64),
+        np.ascontiguousarray(faces, np.int64),
+        np.ascontiguousarray(weights, np.float64),
+        np.cos(lon),
+        np.sin(lon),
+        np.cos(lat),
+        np.sin(lat),
+        out,
+    )
+    return out

@@ -424,9 +424,14 @@ def _grid_faces(mesh: _Mesh, width: int) -> tuple[NDArray[np.int32], FloatArray,
     cos_lat, sin_lat = meridian[:, 0], meridian[:, 2]
 
     run_face, flat_start, length = _runs(mesh, width, cos_lat, sin_lat)
-    face = np.full(height * width, -1, np.int32)
-    offsets = np.cumsum(length) - length
-    face[np.repeat(flat_start - offsets, length) + np.arange(int(length.sum()))] = np.repeat(run_face.astype(np.int32), length)
+    from . import _kernels  # noqa: PLC0415 - numba, when it is there, loads only now
+
+    if _kernels.available():
+        face = _kernels.paint(run_face, flat_start, length, height * width)
+    else:
+        face = np.full(height * width, -1, np.int32)
+        offsets = np.cumsum(length) - length
+        face[np.repeat(flat_start - offsets, length) + np.arange(int(length.sum()))] = np.repeat(run_face.astype(np.int32), length)
     missed = np.flatnonzero(face < 0)
     if len(missed):  # only by rounding far beyond EDGE_TOLERANCE; never expected
         rows, cols = np.divmod(missed, width)

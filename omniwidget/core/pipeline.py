@@ -289,7 +289,7 @@ def warp(
     from . import _kernels
     from .bbw import bbw, normalize_rows
     from .blend import blended_inverse, mesh_pixel_weights
-    from .locate import barycentric, interpolate, locate_faces, locate_grid
+    from .locate import interpolate, locate_faces, locate_grid
     from .mesh import adaptive_mesh
 
     problems_before = _crossing_lines(constraints)
@@ -310,12 +310,8 @@ def warp(
         lap("resampling")
         folds = FoldOver.from_mask(_kernels.fold_mask(coordinates, image.shape[1]))
         if folds.area >= FOLD_WARNING_AREA:
-            rows, cols = np.nonzero(folds.mask)
-            lon, lat = coords.grid_lonlat(width)
-            at = barycentric(planes, face[rows, cols], coords.lonlat_to_xyz(np.stack([lon[cols], lat[rows]], axis=-1)))
-            problems.append(
-                _fold_warning(handles, constraints.controls, interpolate(weights, mesh.faces, face[rows, cols], at), folds.area)
-            )
+            strongest = _kernels.strongest_weights(folds.mask, face, planes, mesh.faces, weights)
+            problems.append(_fold_warning(handles, constraints.controls, strongest[None], folds.area))
     else:
         face, bary = locate_grid(mesh.vertices, mesh.faces, width)
         lap("locate")

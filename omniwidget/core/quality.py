@@ -242,7 +242,7 @@ class FoldOver:
         -------
         FoldOver
         """
-        return cls(mask, float(np.sum(mask * _area(len(mask))[:, None])))
+        return cls(mask, float(np.count_nonzero(mask, axis=1) @ _area(len(mask))))
 
 
 def fold_over(inverse_map: ArrayLike, pole_margin: float = 1.0) -> FoldOver:
