@@ -52,6 +52,17 @@ def available() -> bool:
 def _compiled() -> tuple:
     from numba import njit
 
+    @njit(nogil=True, cache=True, inline="always")
+    def corner_shares(planes, f, x, y, z):  # pragma: no cover
+        """Barycentric coordinates of (x, y, z) in face f: b_i ∝ max(p · planes[f, i + 1], 0)."""
+        s0 = max(planes[f, 0, 0] * x + planes[f, 0, 1] * y + planes[f, 0, 2] * z, 0.0)
+        s1 = max(planes[f, 1, 0] * x + planes[f, 1, 1] * y + planes[f, 1, 2] * z, 0.0)
+        s2 = max(planes[f, 2, 0] * x + planes[f, 2, 1] * y + planes[f, 2, 2] * z, 0.0)
+        total = s0 + s1 + s2
+        if total <= 0.0:
+            total = 1.0
+        return s1 / total, s2 / total, s0 / total
+
     @njit(nogil=True, cache=True)
     def blend_rows(r0, r1, face, planes, corners, weights, mats, cos_lon, sin_lon, cos_lat, sin_lat, kx, x0, y0, out):  # pragma: no cover
         k = weights.shape[1]
@@ -62,13 +73,7 @@ def _compiled() -> tuple:
                 f = face[r, c]
                 x = cl * cos_lon[c]
                 y = cl * sin_lon[c]
-                s0 = max(planes[f, 0, 0] * x + planes[f, 0, 1] * y + planes[f, 0, 2] * z, 0.0)
-                s1 = max(planes[f, 1, 0] * x + planes[f, 1, 1] * y + planes[f, 1, 2] * z, 0.0)
-                s2 = max(planes[f, 2, 0] * x + planes[f, 2, 1] * y + planes[f, 2, 2] * z, 0.0)
-                total = s0 + s1 + s2
-                if total <= 0.0:
-                    total = 1.0
-                b0, b1, b2 = s1 / total, s2 / total, s0 / total  # b_i ∝ s_{i+1}
+                b0, b1, b2 = corner_shares(planes, f, x, y, z)
                 i0, i1, i2 = corners[f, 0], corners[f, 1], corners[f, 2]
                 if z <= 0.0:  # [u : v] as coords.xyz_to_homogeneous chooses it
                     ur, ui, vr, vi = x, y, 1.0 - z, 0.0
@@ -137,15 +142,10 @@ def _compiled() -> tuple:
             x = cos_lat[r] * cos_lon[c]
             y = cos_lat[r] * sin_lon[c]
             z = sin_lat[r]
-            s0 = max(planes[f, 0, 0] * x + planes[f, 0, 1] * y + planes[f, 0, 2] * z, 0.0)
-            s1 = max(planes[f, 1, 0] * x + planes[f, 1, 1] * y + planes[f, 1, 2] * z, 0.0)
-            s2 = max(planes[f, 2, 0] * x + planes[f, 2, 1] * y + planes[f, 2, 2] * z, 0.0)
-            total = s0 + s1 + s2
-            if total <= 0.0:
-                total = 1.0
+            b0, b1, b2 = corner_shares(planes, f, x, y, z)
             i0, i1, i2 = corners[f, 0], corners[f, 1], corners[f, 2]
             for j in range(weights.shape[1]):
-                w = (s1 * weights[i0, j] + s2 * weights[i1, j] + s0 * weights[i2, j]) / total
+                w = b0 * weights[i0, j] + b1 * weights[i1, j] + b2 * weights[i2, j]
                 if w > out[j]:
                     out[j] = w
 
