@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from functools import cache
 
 import numpy as np
@@ -28,8 +29,11 @@ from . import coords
 from .moebius import Moebius
 from .warping import PAD, _run_blocks
 
-__all__ = ["available", "blend_coordinates", "fold_mask", "paint", "strongest_weights"]
+__all__ = ["available", "blend_blocks", "blend_coordinates", "interpolate_shift", "fold_mask", "paint", "strongest_weights"]
 
+#: A pixel's candidate faces: those of its block's sample, then of the samples around it.
+_AROUND_ROWS = (0, 0, 0, -1, 1, -1, -1, 1, 1)
+_AROUND_COLS = (0, -1, 1, 0, 0, -1, 1, -1, 1)
 #: Weights at most this are skipped (the numpy path skips a control only where it is below
 #: :data:`omniwidget.core.blend.NEGLIGIBLE` over a whole block of rows; both are far below
 #: what a pixel can show).
@@ -63,45 +67,119 @@ def _compiled() -> tuple:
             total = 1.0
         return s1 / total, s2 / total, s0 / total
 
+    @njit(nogil=True, cache=True, inline="always")
+    def blend_pixel(f, x, y, z, planes, corners, weights, mats):  # pragma: no cover
+        """Eq. (2) at the unit vector (x, y, z) in face f: the source's (lon, lat) in radians."""
+        b0, b1, b2 = corner_shares(planes, f, x, y, z)
+        i0, i1, i2 = corners[f, 0], corners[f, 1], corners[f, 2]
+        if z <= 0.0:  # [u : v] as coords.xyz_to_homogeneous chooses it
+            ur, ui, vr, vi = x, y, 1.0 - z, 0.0
+        else:
+            ur, ui, vr, vi = 1.0 + z, 0.0, x, -y
+        sum_r = 0.0
+        sum_i = 0.0
+        sum_z = 0.0
+        for j in range(weights.shape[1]):
+            w = b0 * weights[i0, j] + b1 * weights[i1, j] + b2 * weights[i2, j]
+            if w <= _NEGLIGIBLE:
+                continue
+            ar, ai, br, bi = mats[j, 0], mats[j, 1], mats[j, 2], mats[j, 3]
+            cr, ci, dr, di = mats[j, 4], mats[j, 5], mats[j, 6], mats[j, 7]
+            big_ur = ar * ur - ai * ui + br * vr - bi * vi
+            big_ui = ar * ui + ai * ur + br * vi + bi * vr
+            big_vr = cr * ur - ci * ui + dr * vr - di * vi
+            big_vi = cr * ui + ci * ur + dr * vi + di * vr
+            uu = big_ur * big_ur + big_ui * big_ui
+            vv = big_vr * big_vr + big_vi * big_vi
+            share = w / (uu + vv)  # the unit vector (2 U V̄, |U|² - |V|²) / (|U|² + |V|²)
+            sum_r += 2.0 * share * (big_ur * big_vr + big_ui * big_vi)
+            sum_i += 2.0 * share * (big_ui * big_vr - big_ur * big_vi)
+            sum_z += share * (uu - vv)
+        return math.atan2(sum_i, sum_r), math.atan2(sum_z, math.sqrt(sum_r * sum_r + sum_i * sum_i))
+
     @njit(nogil=True, cache=True)
     def blend_rows(r0, r1, face, planes, corners, weights, mats, cos_lon, sin_lon, cos_lat, sin_lat, kx, x0, y0, out):  # pragma: no cover
-        k = weights.shape[1]
         for r in range(r0, r1):
-            cl = cos_lat[r]
-            z = sin_lat[r]
             for c in range(face.shape[1]):
-                f = face[r, c]
-                x = cl * cos_lon[c]
-                y = cl * sin_lon[c]
-                b0, b1, b2 = corner_shares(planes, f, x, y, z)
-                i0, i1, i2 = corners[f, 0], corners[f, 1], corners[f, 2]
-                if z <= 0.0:  # [u : v] as coords.xyz_to_homogeneous chooses it
-                    ur, ui, vr, vi = x, y, 1.0 - z, 0.0
-                else:
-                    ur, ui, vr, vi = 1.0 + z, 0.0, x, -y
-                sum_r = 0.0
-                sum_i = 0.0
-                sum_z = 0.0
-                for j in range(k):
-                    w = b0 * weights[i0, j] + b1 * weights[i1, j] + b2 * weights[i2, j]
-                    if w <= _NEGLIGIBLE:
-                        continue
-                    ar, ai, br, bi = mats[j, 0], mats[j, 1], mats[j, 2], mats[j, 3]
-                    cr, ci, dr, di = mats[j, 4], mats[j, 5], mats[j, 6], mats[j, 7]
-                    big_ur = ar * ur - ai * ui + br * vr - bi * vi
-                    big_ui = ar * ui + ai * ur + br * vi + bi * vr
-                    big_vr = cr * ur - ci * ui + dr * vr - di * vi
-                    big_vi = cr * ui + ci * ur + dr * vi + di * vr
-                    uu = big_ur * big_ur + big_ui * big_ui
-                    vv = big_vr * big_vr + big_vi * big_vi
-                    share = w / (uu + vv)  # the unit vector (2 U V̄, |U|² - |V|²) / (|U|² + |V|²)
-                    sum_r += 2.0 * share * (big_ur * big_vr + big_ui * big_vi)
-                    sum_i += 2.0 * share * (big_ui * big_vr - big_ur * big_vi)
-                    sum_z += share * (uu - vv)
-                lon = math.atan2(sum_i, sum_r)
-                lat = math.atan2(sum_z, math.sqrt(sum_r * sum_r + sum_i * sum_i))
+                lon, lat = blend_pixel(
+                    face[r, c], cos_lat[r] * cos_lon[c], cos_lat[r] * sin_lon[c], sin_lat[r], planes, corners, weights, mats
+                )
                 out[r, c, 0] = lon * kx + x0
                 out[r, c, 1] = y0 - lat * kx
+
+    @njit(nogil=True, cache=True)
+    def blend_cells(
+        n0,
+        n1,
+        cell_r,
+        cell_c,
+        step,
+        samples,
+        planes,
+        slack,
+        corners,
+        weights,
+        mats,
+        cos_lon,
+        sin_lon,
+        cos_lat,
+        sin_lat,
+        kx,
+        x0,
+        y0,
+        out,
+        missed,
+    ):  # pragma: no cover
+        rows_c, cols_c = samples.shape
+        for n in range(n0, n1):
+            i, j = cell_r[n], cell_c[n]
+            for r in range(i * step, (i + 1) * step):
+                for c in range(j * step, (j + 1) * step):
+                    x = cos_lat[r] * cos_lon[c]
+                    y = cos_lat[r] * sin_lon[c]
+                    z = sin_lat[r]
+                    f = -1
+                    for h in range(9):  # the faces of the block's sample and its neighbours'
+                        ii = min(max(i + _AROUND_ROWS[h], 0), rows_c - 1)
+                        jj = (j + _AROUND_COLS[h]) % cols_c
+                        g = samples[ii, jj]
+                        inside = True
+                        for e in range(3):
+                            if planes[g, e, 0] * x + planes[g, e, 1] * y + planes[g, e, 2] * z < -slack[g, e]:
+                                inside = False
+                                break
+                        if inside:
+                            f = g
+                            break
+                    if f < 0:
+                        missed[r, c] = True
+                        continue
+                    lon, lat = blend_pixel(f, x, y, z, planes, corners, weights, mats)
+                    out[r, c, 0] = lon * kx + x0
+                    out[r, c, 1] = y0 - lat * kx
+
+    @njit(nogil=True, cache=True)
+    def interpolate_rows(r0, r1, shift, step, exact, src_width, per_degree, lon, lat, pad, out):  # pragma: no cover
+        rows_c, cols_c = exact.shape
+        for r in range(r0, r1):
+            yc = min(max((r + 0.5) / step - 0.5, 0.0), rows_c - 1.0)
+            i0 = min(int(yc), rows_c - 2) if rows_c > 1 else 0
+            fy = yc - i0
+            base_y = (90.0 - lat[r]) * per_degree - 0.5 + pad
+            for c in range(out.shape[1]):
+                if exact[r // step, c // step]:
+                    continue
+                xc = (c + 0.5) / step - 0.5 + 1.0  # shift has one wrapped sample on each side
+                j0 = int(math.floor(xc))
+                fx = xc - j0
+                top_x = shift[i0, j0, 0] + fx * (shift[i0, j0 + 1, 0] - shift[i0, j0, 0])
+                top_y = shift[i0, j0, 1] + fx * (shift[i0, j0 + 1, 1] - shift[i0, j0, 1])
+                bot_x = shift[i0 + 1, j0, 0] + fx * (shift[i0 + 1, j0 + 1, 0] - shift[i0 + 1, j0, 0])
+                bot_y = shift[i0 + 1, j0, 1] + fx * (shift[i0 + 1, j0 + 1, 1] - shift[i0 + 1, j0, 1])
+                x = (lon[c] + 180.0) * per_degree + top_x + fy * (bot_x - top_x)  # x + 0.5 of the unpadded source
+                x -= math.floor(x / src_width) * src_width
+                out[r, c, 0] = x - 0.5 + pad
+                out[r, c, 1] = base_y + top_y + fy * (bot_y - top_y)
 
     @njit(nogil=True, cache=True)
     def fold_rows(r0, r1, coordinates, src_width, offset, top, bottom, mask):  # pragma: no cover
@@ -149,7 +227,7 @@ def _compiled() -> tuple:
                 if w > out[j]:
                     out[j] = w
 
-    return blend_rows, fold_rows, paint_runs, strongest
+    return blend_rows, fold_rows, paint_runs, strongest, blend_cells, interpolate_rows
 
 
 def _matrices(inverses: Sequence[Moebius]) -> NDArray[np.float64]:
@@ -186,26 +264,102 @@ def blend_coordinates(
     """
     blend_rows = _compiled()[0]
     height, width = face.shape
-    lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
     out = np.empty((height, width, 2), np.float32)
-    kx = src_width / (2 * math.pi)
-    args = (
-        np.ascontiguousarray(face),
+    mesh, grid = _mesh_args(planes, faces, weights, inverses), _grid_args(width, src_width)
+    face = np.ascontiguousarray(face)
+    _run_blocks(height, lambda rows: blend_rows(rows.start, rows.stop, face, *mesh, *grid, out))
+    return out
+
+
+def blend_blocks(
+    cells: NDArray[np.bool_],
+    samples: NDArray[np.int32],
+    planes: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    weights: NDArray[np.floating],
+    inverses: Sequence[Moebius],
+    src_width: int,
+    out: NDArray[np.float32],
+) -> NDArray[np.bool_]:
+    """:func:`blend_coordinates` in chosen blocks of output pixels, located from their samples' faces; written into ``out``.
+
+    Parameters
+    ----------
+    cells : ndarray of bool, shape (h, w)
+        The blocks of ``out`` to evaluate: block ``(i, j)`` is the ``s x s`` pixels around the
+        sample ``(i, j)`` of a grid ``s = W / w`` times coarser.
+    samples : ndarray of int32, shape (h, w)
+        The samples' faces (:func:`omniwidget.core.locate.locate_faces` on the coarse grid):
+        a pixel's candidate faces are its block's sample's and those of the 8 samples around it.
+    planes, faces, weights, inverses, src_width
+        As in :func:`blend_coordinates`.
+    out : ndarray of float32, shape (H, W, 2)
+        Coordinates, overwritten in the blocks at the pixels that lie in a candidate face.
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W)
+        The pixels in none of their candidate faces (not written).
+    """
+    blend_cells = _compiled()[4]
+    step = out.shape[1] // cells.shape[1]
+    planes = np.ascontiguousarray(planes, np.float64)
+    slack = 1e-12 * np.linalg.norm(planes, axis=2)  # locate.EDGE_TOLERANCE, per edge plane
+    mesh = _mesh_args(planes, faces, weights, inverses)
+    grid = _grid_args(out.shape[1], src_width)
+    missed = np.zeros(out.shape[:2], dtype=bool)
+    cell_r, cell_c = np.nonzero(cells)
+    samples = np.ascontiguousarray(samples, np.int32)
+
+    def work(block: slice) -> None:
+        blend_cells(block.start, block.stop, cell_r, cell_c, step, samples, mesh[0], slack, *mesh[1:], *grid, out, missed)
+
+    n = len(cell_r)
+    chunk = max(1, -(-n // (2 * (os.cpu_count() or 1))))
+    with ThreadPoolExecutor(os.cpu_count() or 1) as pool:
+        list(pool.map(work, [slice(i, min(i + chunk, n)) for i in range(0, n, chunk)]))
+    return missed
+
+
+def interpolate_shift(shift: NDArray[np.float32], exact: NDArray[np.bool_], src_width: int, out: NDArray[np.float32]) -> None:
+    """Fill ``out`` outside the ``exact`` blocks by bilinear interpolation of the samples' displacements.
+
+    Parameters
+    ----------
+    shift : ndarray of float32, shape (h, w, 2)
+        Each sample's source position minus where it is shown, in source pixels (longitude
+        difference wrapped to half a turn).
+    exact : ndarray of bool, shape (h, w)
+        Blocks left alone (evaluated exactly by :func:`blend_blocks`).
+    src_width : int
+    out : ndarray of float32, shape (H, W, 2)
+        Padded source coordinates, as :func:`blend_coordinates` gives.
+    """
+    interpolate_rows = _compiled()[5]
+    step = out.shape[1] // exact.shape[1]
+    padded = np.ascontiguousarray(np.concatenate([shift[:, -1:], shift, shift[:, :1]], axis=1), np.float64)
+    lon, lat = coords.grid_lonlat(out.shape[1])
+    exact = np.ascontiguousarray(exact)
+    per_degree = src_width / 360.0
+    _run_blocks(
+        len(out),
+        lambda rows: interpolate_rows(rows.start, rows.stop, padded, step, exact, float(src_width), per_degree, lon, lat, float(PAD), out),
+    )
+
+
+def _mesh_args(planes, faces, weights, inverses) -> tuple:
+    return (
         np.ascontiguousarray(planes, np.float64),
         np.ascontiguousarray(faces, np.int64),
         np.ascontiguousarray(weights, np.float32),
         _matrices(inverses),
-        np.cos(lon),
-        np.sin(lon),
-        np.cos(lat),
-        np.sin(lat),
-        kx,
-        src_width / 2 - 0.5 + PAD,
-        src_width / 4 - 0.5 + PAD,
-        out,
     )
-    _run_blocks(height, lambda rows: blend_rows(rows.start, rows.stop, *args))
-    return out
+
+
+def _grid_args(width: int, src_width: int) -> tuple:
+    lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
+    kx = src_width / (2 * math.pi)
+    return (np.cos(lon), np.sin(lon), np.cos(lat), np.sin(lat), kx, src_width / 2 - 0.5 + PAD, src_width / 4 - 0.5 + PAD)
 
 
 def fold_mask(coordinates: NDArray[np.float32], src_width: int, pole_margin: float = 1.0) -> NDArray[np.bool_]:

@@ -237,7 +237,14 @@ def _exact_inverse(
 
 
 def warp(
-    image: NDArray, handles: Handles, *, width: int | None = None, order: Order = "bilinear", samples: int = SAMPLES, warn: bool = True
+    image: NDArray,
+    handles: Handles,
+    *,
+    width: int | None = None,
+    order: Order = "bilinear",
+    samples: int = SAMPLES,
+    warn: bool = True,
+    exact: bool = False,
 ) -> Result:
     """Warp a panorama by any number of handles (the paper's method).
 
@@ -258,6 +265,12 @@ def warp(
     warn : bool
         Issue conflicts as :class:`BlendWarning`; they are in ``Result.warnings`` either way
         (the command line and the editor show them themselves).
+    exact : bool
+        Evaluate the blend at every output pixel. By default, with the compiled kernels and
+        an output at least :data:`omniwidget.core.sampled.SAMPLE_FROM` wide, it is evaluated
+        on a coarser grid and interpolated where that is within a tenth of a pixel, and
+        exactly near the handles (:mod:`omniwidget.core.sampled`). ``Result.inverse_map()``
+        and so every quality figure use the exact map either way.
 
     Returns
     -------
@@ -291,6 +304,7 @@ def warp(
     from .blend import blended_inverse, mesh_pixel_weights
     from .locate import interpolate, locate_faces, locate_grid
     from .mesh import adaptive_mesh
+    from .sampled import coarse_step, sampled_coordinates
 
     problems_before = _crossing_lines(constraints)
     mesh = adaptive_mesh(constraints.points)
@@ -301,16 +315,23 @@ def warp(
     lap("weights")
     inverses = [m.inverse for m in maps]
     if _kernels.available():
-        face, planes = locate_faces(mesh.vertices, mesh.faces, width)
-        lap("locate")
-        coordinates = _kernels.blend_coordinates(face, planes, mesh.faces, weights, inverses, image.shape[1])
+        step = 1 if exact else coarse_step(width)
+        if step > 1:
+            coordinates, face, planes, _ = sampled_coordinates(
+                inverses, mesh.vertices, mesh.faces, weights, width, image.shape[1], step, constraints.points
+            )
+        else:
+            face, planes = locate_faces(mesh.vertices, mesh.faces, width)
+            lap("locate")
+            coordinates = _kernels.blend_coordinates(face, planes, mesh.faces, weights, inverses, image.shape[1])
         inverse = _exact_inverse(inverses, mesh.vertices, mesh.faces, weights, width)  # located again when first asked
         lap("blend")
         out = remap(pad_panorama(image), coordinates, order)
         lap("resampling")
         folds = FoldOver.from_mask(_kernels.fold_mask(coordinates, image.shape[1]))
         if folds.area >= FOLD_WARNING_AREA:
-            strongest = _kernels.strongest_weights(folds.mask, face, planes, mesh.faces, weights)
+            where = folds.mask if step == 1 else folds.mask.reshape(face.shape[0], step, face.shape[1], step).any(axis=(1, 3))
+            strongest = _kernels.strongest_weights(where, face, planes, mesh.faces, weights)
             problems.append(_fold_warning(handles, constraints.controls, strongest[None], folds.area))
     else:
         face, bary = locate_grid(mesh.vertices, mesh.faces, width)

@@ -1,0 +1,109 @@
+"""The blended map sampled on a coarser grid (omniwidget.core.sampled) against the exact map, pixel by pixel."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from omniwidget.core import _kernels, coords
+from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.core.locate import locate_faces
+from omniwidget.core.pipeline import warp
+from omniwidget.core.quality import cage_motion, straightness
+from omniwidget.core.sampled import coarse_step, sampled_coordinates
+from omniwidget.core.scenes import mark_lines, synthetic_room
+from omniwidget.core.warping import PAD, remap_coordinates
+
+pytestmark = pytest.mark.skipif(not _kernels.available(), reason="the sampled map needs the compiled kernels (numba)")
+
+W = 2048
+CAGE = CageHandle(((-150.0, -20.0), (-120.0, -20.0), (-120.0, 10.0), (-150.0, 10.0)))
+
+
+def _both(image, doc):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return warp(image, doc), warp(image, doc, exact=True)
+
+
+def _source_error(fast, exact) -> np.ndarray:
+    """Angular distance (px at W) between the sources of the two maps' coordinates, per output pixel."""
+
+    def lonlat(c):
+        return np.stack([(c[..., 0] - PAD + 0.5) * 360 / W - 180, 90 - (c[..., 1] - PAD + 0.5) * 360 / W], axis=-1)
+
+    inverses = [c.moebius.inverse for c in fast.controls]
+    sampled, *_ = sampled_coordinates(inverses, fast.vertices, fast.faces, fast.weights, W, W, 4, fast.constraints.points)
+    return coords.angular_distance(lonlat(sampled.astype(np.float64)), lonlat(remap_coordinates(exact.inverse, W, W))) * W / 360
+
+
+@pytest.fixture(scope="module")
+def room():
+    """Lines only fold and swing the far field here: the hardest map to sample; a cage and a point too."""
+    scene = synthetic_room(W, size=(4.0, 3.0, 3.0), camera=(0.3, -0.2, -1.0), yaw=52.0)
+    lines = mark_lines(scene, 8, seed=5, keep_clear=((np.array(CAGE.vertices), 12.0),))
+    point = PointHandle((60.0, -40.0), target=(66.0, -36.0), scale=1.2, rotation=15.0)
+    doc = Handles((*(LineHandle(line.start, line.end) for line in lines), CAGE, point), Options(rectify="all"))
+    return scene, doc, *_both(scene.image, doc)
+
+
+def test_sampled_warp_matches_the_exact_one(room):
+    _, _, fast, exact = room
+    assert "locate" not in fast.timings and "locate" in exact.timings  # the sampled path ran
+    difference = np.abs(fast.image.astype(int) - exact.image.astype(int))
+    error = _source_error(fast, exact)
+    print(
+        f"\nsampled vs exact: image MAD {difference.mean():.3f}, sources p99.9 {np.percentile(error, 99.9):.3f} px, max {error.max():.3f} px"
+    )
+    assert difference.mean() < 0.5
+    assert np.percentile(error, 99.9) < 0.25 and error.max() < 1.0
+    assert abs(fast.folds.area - exact.folds.area) < 1e-4 and fast.warnings == exact.warnings
+    assert np.array_equal(fast.inverse_map(np.float64), exact.inverse_map(np.float64))  # what is measured is exact either way
+
+
+def test_lines_and_cages_come_out_as_the_exact_map_makes_them(room):
+    _, doc, fast, exact = room
+    error = _source_error(fast, exact)
+    for control, samples in fast.constraints.lines:
+        out = fast.controls[control].moebius(samples)
+        px = np.floor(coords.lonlat_to_px(out, W) + 0.5).astype(int)
+        for dx in (-2, 0, 2):
+            for dy in (-2, 0, 2):
+                assert error[np.clip(px[:, 1] + dy, 0, W // 2 - 1), (px[:, 0] + dx) % W].max() < 1e-3
+        # and the lines measured on the image's own coordinates are as straight
+        ours = straightness(fast.forward_points(samples, control), W, fit="best")
+        assert ours == straightness(exact.forward_points(samples, control), W, fit="best")
+    sampled, *_ = sampled_coordinates(
+        [c.moebius.inverse for c in fast.controls], fast.vertices, fast.faces, fast.weights, W, W, 4, fast.constraints.points
+    )
+    lonlat = np.stack([(sampled[..., 0] - PAD + 0.5) * 360 / W - 180, 90 - (sampled[..., 1] - PAD + 0.5) * 360 / W], axis=-1)
+    assert cage_motion(lonlat.astype(np.float64), CAGE.vertices) < 0.01
+
+
+def test_a_pole_brought_into_view_is_evaluated_exactly():
+    """A turn that shows the north pole at the equator: the displacement turns about it, and is not interpolated there."""
+    image = synthetic_room(W, grid=0.5).image
+    doc = Handles((PointHandle((0.0, 80.0), target=(0.0, 10.0), rotation=30.0), LineHandle((90.0, -20.0), (130.0, -25.0))))
+    fast, exact = _both(image, doc)
+    error = _source_error(fast, exact)
+    assert error.max() < 1.0, error.max()
+    assert np.abs(fast.image.astype(int) - exact.image.astype(int)).mean() < 0.5
+
+
+def test_pixels_outside_their_candidate_faces_are_reported(room):
+    _, _, fast, _ = room
+    inverses = [c.moebius.inverse for c in fast.controls]
+    face, planes = locate_faces(fast.vertices, fast.faces, 64)
+    wrong = np.zeros_like(face)  # every block told that its faces are face 0's
+    out = np.full((128, 256, 2), -1.0, np.float32)
+    cells = np.ones(face.shape, dtype=bool)
+    missed = _kernels.blend_blocks(cells, wrong, planes, fast.faces, fast.weights, inverses, W, out)
+    truth, _ = locate_faces(fast.vertices, fast.faces, 256)
+    assert np.array_equal(missed, truth != 0)
+    full = _kernels.blend_coordinates(truth, planes, fast.faces, fast.weights, inverses, W)
+    assert np.array_equal(out[~missed], full[~missed]) and np.all(out[missed] == -1)
+
+
+def test_coarse_step():
+    assert coarse_step(1024) == 1 and coarse_step(2048) == 4 and coarse_step(11968) == 4 and coarse_step(2052) == 3
+    assert coarse_step(2054) == 1
