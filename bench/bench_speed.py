@@ -17,7 +17,8 @@ The figures (the issue's numbering):
 3. **The per-pixel stage** of the same warp (locate, blend, resampling, fold check), against a
    bare ``cv2.remap`` of the same image with the same coordinates.
 4. **Preview latency**, kernel side: an :class:`omniwidget.Editor` with the scene, one point's
-   zoom changed, until the 1024 x 512 preview is set on the widget. The browser figure comes
+   centre moved by a degree at a time (a drag), until the 1024 x 512 preview is set on the
+   widget; each preview starts its weights from the last one's. The browser figure comes
    from ``test-artifacts/editor_latency.json`` when the browser test has run.
 5. **Scale**: the scene's handles on ``../shared/data/brooklyn_street_12k.jpg`` (11968 x 5984),
    read and warped twice in a fresh process: wall time of the second warp (the first also
@@ -160,7 +161,8 @@ def preview(image, scene, repeat: int) -> None:
     walls = []
     for i in range(repeat + 1):
         items = list(scene.handles)
-        items[index] = replace(items[index], scale=items[index].scale * (1.05 + 0.01 * i))
+        h = items[index]
+        items[index] = replace(h, target=(h.target[0] + 1.0 * i, h.target[1]))  # a drag of the point's centre, as in the browser test
         start = time.perf_counter()
         editor.handles = replace(scene, handles=tuple(items))
         editor.wait()

@@ -5,9 +5,11 @@ import warnings
 import numpy as np
 import pytest
 
+from omniwidget.core import bbw as bbw_module
 from omniwidget.core import coords
 from omniwidget.core.bbw import normalize_rows
 from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.core.mesh import icosphere
 from omniwidget.core.pipeline import FOLD_WARNING_AREA, BlendWarning, warp
 from omniwidget.core.quality import cage_motion, coverage, straightness
 from omniwidget.core.scenes import mark_lines, synthetic_room
@@ -121,3 +123,46 @@ def test_handles_that_do_not_move_give_the_image_back(rng):
         )
     )
     assert warp(image, doc).image.tobytes() == image.tobytes()
+
+
+# --- starting from an earlier warp ------------------------------------------------------
+
+
+def _drag(doc: Handles, index: int, by: float) -> Handles:
+    from dataclasses import replace
+
+    items = list(doc.handles)
+    h = items[index]
+    items[index] = replace(h, target=(h.target[0] + by, h.target[1]), scale=h.scale * (1 + by / 50))
+    return replace(doc, handles=tuple(items))
+
+
+def test_an_earlier_warp_starts_the_solver_and_gives_the_same_weights():
+    scene = synthetic_room(512, size=(4.0, 3.0, 3.0), camera=(0.3, -0.2, -1.0), yaw=20.0)
+    lines = mark_lines(scene, 5, seed=2, min_bend=5.0 * 512 / 2048)
+    point = PointHandle((-60.0, -30.0), target=(-55.0, -27.0), scale=1.1, rotation=10.0)
+    doc = Handles((*(LineHandle(line.start, line.end) for line in lines), point), Options(rectify="all"))
+    first = warp(scene.image, doc, warn=False)
+    assert first.raw_weights is not None and first.raw_weights.shape == first.weights.shape
+    np.testing.assert_allclose(first.weights, bbw_module.normalize_rows(first.raw_weights), atol=0)
+    # the same handles at another size: the same weights problem, its weights taken as they are
+    same = warp(scene.image, doc, width=256, warn=False, previous=first)
+    assert same.raw_weights is first.raw_weights and np.array_equal(same.weights, first.weights)
+    # a point dragged a little: a new mesh, and the weights a cold start gives
+    moved = _drag(doc, len(doc.handles) - 1, 2.0)
+    cold = warp(scene.image, moved, warn=False)
+    warm = warp(scene.image, moved, warn=False, previous=first)
+    assert not np.array_equal(cold.vertices, first.vertices) and np.array_equal(warm.vertices, cold.vertices)
+    assert np.abs(warm.raw_weights - cold.raw_weights).max() < 1e-9
+    assert np.array_equal(warm.image, cold.image)
+    # other controls (a handle fewer): a cold start, the same result as without
+    fewer = Handles(doc.handles[1:], doc.options)
+    assert np.array_equal(warp(scene.image, fewer, warn=False, previous=first).image, warp(scene.image, fewer, warn=False).image)
+    with pytest.raises(TypeError, match="previous must be a Result"):
+        warp(scene.image, doc, previous="last time")
+
+
+def test_bbw_start_is_checked():
+    v, f = icosphere(2)
+    with pytest.raises(ValueError, match=r"start must be a finite array of shape \(162, 2\)"):
+        bbw_module.bbw(v, f, np.array([0, 5]), np.eye(2), start=np.zeros((162, 3)))

@@ -210,8 +210,9 @@ def _finish(
     folds = fold_over(inverse_map)
     timings["fold check"] = time.perf_counter() - clock
     result = BaselineResult(
-        out, handles, constraints, None, None, None, None, None, inverse, timings, (), image.shape[1], folds, method, source_of, per_pixel
-    )
+        out, handles, constraints, None, None, None, None, None, inverse, timings, (), image.shape[1], folds,
+        method=method, source_of=source_of, per_pixel=per_pixel,
+    )  # fmt: skip
     inverse_map.flags.writeable = False
     result.__dict__["_inverse_map"] = inverse_map  # Result.inverse_map()'s cache: computed once, here
     return result
@@ -291,7 +292,7 @@ def single_moebius(
 
     return BaselineResult(
         out, handles, constraints, None, None, None, None, None, grid_inverse(inverse), timings, (), image.shape[1], no_folds,
-        "single_moebius", source_of, per_pixel,
+        method="single_moebius", source_of=source_of, per_pixel=per_pixel,
     )  # fmt: skip
 
 

@@ -647,6 +647,7 @@ def bbw(
     max_iter: int = 100,
     multilevel: bool = True,
     workers: int | None = None,
+    start: ArrayLike | None = None,
 ) -> FloatArray:
     """Bounded biharmonic weights, one column per handle, without partition of unity.
 
@@ -682,6 +683,11 @@ def bbw(
     workers : int or None
         Threads solving handles in parallel (the sparse factorizations release the
         GIL); ``None`` uses one per CPU, at most one per handle.
+    start : array_like, shape (n, k), optional
+        A guess of the weights (for example the last solution of a slightly different
+        problem, interpolated onto this mesh): the active sets start where it is 0 or 1,
+        and the coarser levels are skipped. The result is the same minimiser; only the
+        number of steps to it changes.
 
     Returns
     -------
@@ -737,7 +743,7 @@ def bbw(
     on meshes of about 2,000 vertices, where libigl needs few steps and factorizations
     are cheap (the per-handle work is then a few small factorizations either way).
     """
-    return _bbw(V, F, b, bc, tol=tol, max_iter=max_iter, multilevel=multilevel, workers=workers)[0]
+    return _bbw(V, F, b, bc, tol=tol, max_iter=max_iter, multilevel=multilevel, workers=workers, start=start)[0]
 
 
 def _bbw(
@@ -750,6 +756,7 @@ def _bbw(
     max_iter: int = 100,
     multilevel: bool = True,
     workers: int | None = None,
+    start: ArrayLike | None = None,
 ) -> tuple[FloatArray, dict]:
     """:func:`bbw` and a record of the work done (levels, steps, factorizations, seconds)."""
     v, f = _as_mesh(V, F)
@@ -770,7 +777,11 @@ def _bbw(
         if missing.size:
             raise ValueError(f"the mesh has {n_comp} connected components and {missing.size} of them have no vertex in b")
 
-    levels = _hierarchy(v, f, idx) if multilevel else [_Level(v, f, idx)]
+    if start is not None:
+        start = np.asarray(start, dtype=np.float64)
+        if start.shape != (n, k) or not np.all(np.isfinite(start)):
+            raise ValueError(f"start must be a finite array of shape {(n, k)} (a guess of the weights), got {start.shape}")
+    levels = _hierarchy(v, f, idx) if multilevel and start is None else [_Level(v, f, idx)]
     info: dict = {"levels": [], "workers": workers}
     w: FloatArray | None = None
     failed: list[int] = []
@@ -782,7 +793,7 @@ def _bbw(
         results: list[_HandleResult] = []
         if prob.free.size:
             if w is None:
-                guess = _factor(prob.q).solve(prob.rhs)
+                guess = start[prob.free] if start is not None else _factor(prob.q).solve(prob.rhs)
             else:
                 guess = (levels[depth + 1].prolong @ w)[prob.free]
             steps = max_iter if depth == 0 else COARSE_STEPS

@@ -75,6 +75,10 @@ class Result:
     folds : FoldOver
         Where the output is turned over (:func:`omniwidget.core.quality.fold_over`): a
         mask and its share of the sphere; none for a single map.
+    raw_weights : ndarray of float64 or None
+        The bounded biharmonic weights before the rows were normalised, (n, k): what
+        :func:`omniwidget.core.bbw.bbw` solved for, kept so that the next warp of a similar
+        document can start from them (``warp(..., previous=result)``).
     """
 
     image: NDArray
@@ -90,6 +94,7 @@ class Result:
     warnings: tuple[str, ...]
     source_width: int
     folds: FoldOver
+    raw_weights: NDArray[np.float64] | None = field(default=None, repr=False)
 
     @property
     def controls(self) -> tuple[Control, ...]:
@@ -214,6 +219,33 @@ def _fold_warning(handles: Handles, controls: tuple[Control, ...], pixel_weights
     )
 
 
+def _previous_weights(
+    previous: Result | None, constraints: Constraints, vertices: NDArray, faces: NDArray, b: NDArray, bc: NDArray
+) -> NDArray[np.float64] | None:
+    """The previous warp's raw weights when it solved exactly this weights problem, else None."""
+    if previous is None or previous.raw_weights is None or len(previous.controls) != len(constraints.controls):
+        return None
+    same = (
+        np.array_equal(previous.vertices, vertices)
+        and np.array_equal(previous.faces, faces)
+        and np.array_equal(previous.constrained, b)
+        and np.array_equal(previous.prescribed, bc)
+    )
+    return previous.raw_weights if same else None
+
+
+def _warm_start(previous: Result | None, constraints: Constraints, vertices: NDArray) -> NDArray[np.float64] | None:
+    """The previous warp's raw weights interpolated at the new mesh's vertices, when its controls are the same ones."""
+    if previous is None or previous.raw_weights is None or len(previous.controls) != len(constraints.controls):
+        return None
+    if any(p.handle != c.handle or p.label != c.label for p, c in zip(previous.controls, constraints.controls, strict=True)):
+        return None
+    from .locate import interpolate, locate_points
+
+    face, bary = locate_points(previous.vertices, previous.faces, vertices)
+    return interpolate(previous.raw_weights, previous.faces, face, bary)
+
+
 def _exact_inverse(
     inverses: list[Moebius], vertices: NDArray[np.float64], faces: NDArray[np.int64], weights: NDArray[np.float64], width: int
 ) -> GridInverse:
@@ -245,6 +277,7 @@ def warp(
     samples: int = SAMPLES,
     warn: bool = True,
     exact: bool = False,
+    previous: Result | None = None,
 ) -> Result:
     """Warp a panorama by any number of handles (the paper's method).
 
@@ -271,6 +304,13 @@ def warp(
         on a coarser grid and interpolated where that is within a tenth of a pixel, and
         exactly near the handles (:mod:`omniwidget.core.sampled`). ``Result.inverse_map()``
         and so every quality figure use the exact map either way.
+    previous : Result, optional
+        The warp of a similar document (the editor's last preview, say). When it solved the
+        same weights problem (the same mesh and boundary conditions: the same handles, at
+        any output size) its weights are taken as they are; when its controls are the same
+        ones, its weights interpolated onto the new mesh start the solver
+        (:func:`omniwidget.core.bbw.bbw`'s ``start``), which then needs fewer steps to the
+        same weights.
 
     Returns
     -------
@@ -278,6 +318,8 @@ def warp(
     """
     if not isinstance(handles, Handles):
         raise TypeError(f"handles must be a Handles document (see Handles.from_dict), got {type(handles).__name__}")
+    if previous is not None and not isinstance(previous, Result):
+        raise TypeError(f"previous must be a Result of an earlier warp, got {type(previous).__name__}")
     width = check_warp_arguments(image, width, order)
     timings: dict[str, float] = {}
     clock = time.perf_counter()
@@ -311,7 +353,10 @@ def warp(
     lap("mesh")
     b, bc, problems = _merge_duplicates(mesh.sample_index, constraints.values, constraints.controls)
     problems = problems_before + problems
-    weights = normalize_rows(bbw(mesh.vertices, mesh.faces, b, bc))
+    raw = _previous_weights(previous, constraints, mesh.vertices, mesh.faces, b, bc)
+    if raw is None:
+        raw = bbw(mesh.vertices, mesh.faces, b, bc, start=_warm_start(previous, constraints, mesh.vertices))
+    weights = normalize_rows(raw)
     lap("weights")
     inverses = [m.inverse for m in maps]
     if _kernels.available():
@@ -352,5 +397,5 @@ def warp(
     for p in problems if warn else ():
         warnings.warn(p, BlendWarning, stacklevel=2)
     return Result(
-        out, handles, constraints, mesh.vertices, mesh.faces, b, bc, weights, inverse, timings, tuple(problems), image.shape[1], folds
+        out, handles, constraints, mesh.vertices, mesh.faces, b, bc, weights, inverse, timings, tuple(problems), image.shape[1], folds, raw
     )

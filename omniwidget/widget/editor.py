@@ -336,7 +336,7 @@ class Editor(anywidget.AnyWidget):
         cached = self._full_result
         if cached is not None and cached[0] == key:
             return cached[1]
-        result = warp(self._image, doc, warn=warn)
+        result = warp(self._image, doc, warn=warn, previous=self._preview_result)  # the preview's weights, when they are these
         self._full_result = (key, result)
         return result
 
@@ -345,7 +345,8 @@ class Editor(anywidget.AnyWidget):
 
         if full or self._preview_width == self._image.shape[1]:
             return self._full(doc, key, warn=False)
-        return warp(self._preview_source, doc, width=self._preview_width, warn=False)
+        # the last preview's weights start the solver: a drag changes them little
+        return warp(self._preview_source, doc, width=self._preview_width, warn=False, previous=self._preview_result)
 
     def _compute(self, doc: Handles, key: str, generation: int, full: bool) -> None:
         start = time.perf_counter()
