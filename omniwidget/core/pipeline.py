@@ -240,10 +240,18 @@ def _warm_start(previous: Result | None, constraints: Constraints, vertices: NDA
         return None
     if any(p.handle != c.handle or p.label != c.label for p, c in zip(previous.controls, constraints.controls, strict=True)):
         return None
+    from scipy.spatial import cKDTree
+
     from .locate import interpolate, locate_points
 
-    face, bary = locate_points(previous.vertices, previous.faces, vertices)
-    return interpolate(previous.raw_weights, previous.faces, face, bary)
+    # most vertices of the new mesh are vertices of the old one (the same icosphere, refined alike far from what moved)
+    distance, nearest = cKDTree(previous.vertices).query(vertices)
+    out = previous.raw_weights[nearest]
+    moved = np.flatnonzero(distance > 1e-12)
+    if len(moved):
+        face, bary = locate_points(previous.vertices, previous.faces, vertices[moved])
+        out[moved] = interpolate(previous.raw_weights, previous.faces, face, bary)
+    return out
 
 
 def _exact_inverse(
