@@ -219,11 +219,9 @@ def _fold_warning(handles: Handles, controls: tuple[Control, ...], pixel_weights
     )
 
 
-def _previous_weights(
-    previous: Result | None, constraints: Constraints, vertices: NDArray, faces: NDArray, b: NDArray, bc: NDArray
-) -> NDArray[np.float64] | None:
+def _previous_weights(previous: Result | None, vertices: NDArray, faces: NDArray, b: NDArray, bc: NDArray) -> NDArray[np.float64] | None:
     """The previous warp's raw weights when it solved exactly this weights problem, else None."""
-    if previous is None or previous.raw_weights is None or len(previous.controls) != len(constraints.controls):
+    if previous is None or previous.raw_weights is None:
         return None
     same = (
         np.array_equal(previous.vertices, vertices)
@@ -361,7 +359,7 @@ def warp(
     lap("mesh")
     b, bc, problems = _merge_duplicates(mesh.sample_index, constraints.values, constraints.controls)
     problems = problems_before + problems
-    raw = _previous_weights(previous, constraints, mesh.vertices, mesh.faces, b, bc)
+    raw = _previous_weights(previous, mesh.vertices, mesh.faces, b, bc)
     if raw is None:
         raw = bbw(mesh.vertices, mesh.faces, b, bc, start=_warm_start(previous, constraints, mesh.vertices))
     weights = normalize_rows(raw)
@@ -396,8 +394,10 @@ def warp(
         lap("blend")
         out = remap(pad_panorama(image), coordinates, order)
         lap("resampling")
-        step = np.float32(360.0 / image.shape[1])  # back to [lon, lat], in float32 (enough for the signs)
-        folds = fold_over((coordinates - np.float32(PAD - 0.5)) * (step * np.array([1, -1], np.float32)) + np.array([-180, 90], np.float32))
+        pixel = np.float32(360.0 / image.shape[1])  # back to [lon, lat], in float32 (enough for the signs)
+        folds = fold_over(
+            (coordinates - np.float32(PAD - 0.5)) * (pixel * np.array([1, -1], np.float32)) + np.array([-180, 90], np.float32)
+        )
         if folds.area >= FOLD_WARNING_AREA:
             at = interpolate(weights, mesh.faces, face[folds.mask], bary[folds.mask])
             problems.append(_fold_warning(handles, constraints.controls, at, folds.area))
