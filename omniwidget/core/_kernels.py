@@ -3,8 +3,12 @@
 The numpy path of the blend (:mod:`omniwidget.core.blend`) makes a pass over the whole
 image per control and per operation; here each output pixel is done in one go: its
 barycentric coordinates in its face, its weights, the Möbius maps whose weight is not
-negligible there, the normalised sum of eq. (2) and its source pixel. The fold check
-(:func:`omniwidget.core.quality.fold_over`'s rule) is one more pass. The kernels release
+negligible there, the normalised sum of eq. (2) and its source pixel. The same per-pixel
+work runs on chosen blocks of pixels for the sampled blend (:mod:`omniwidget.core.sampled`),
+beside the bilinear interpolation of the samples elsewhere; the fold check
+(:func:`omniwidget.core.quality.fold_over`'s rule), the painting of the pixels' faces
+(:func:`omniwidget.core.locate.locate_faces`) and the weights named in a fold warning are
+one pass each. The kernels release
 the GIL and run on blocks of rows in threads (not numba's own parallel layer, which does
 not allow two threads to launch kernels at once, as the editor's preview and a full-size
 warp may).
@@ -21,6 +25,7 @@ import os
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from functools import cache
+from types import SimpleNamespace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,7 +58,8 @@ def available() -> bool:
 
 
 @cache
-def _compiled() -> tuple:
+def _compiled() -> SimpleNamespace:
+    """The kernels, compiled on first use (and cached on disk by numba)."""
     from numba import njit
 
     @njit(nogil=True, cache=True, inline="always")
@@ -227,7 +233,14 @@ def _compiled() -> tuple:
                 if w > out[j]:
                     out[j] = w
 
-    return blend_rows, fold_rows, paint_runs, strongest, blend_cells, interpolate_rows
+    return SimpleNamespace(
+        blend_rows=blend_rows,
+        blend_cells=blend_cells,
+        interpolate_rows=interpolate_rows,
+        fold_rows=fold_rows,
+        paint_runs=paint_runs,
+        strongest=strongest,
+    )
 
 
 def _matrices(inverses: Sequence[Moebius]) -> NDArray[np.float64]:
@@ -262,7 +275,7 @@ def blend_coordinates(
     ndarray of float32, shape (H, W, 2)
         What :func:`omniwidget.core.warping.remap_coordinates` returns for the numpy blend.
     """
-    blend_rows = _compiled()[0]
+    blend_rows = _compiled().blend_rows
     height, width = face.shape
     out = np.empty((height, width, 2), np.float32)
     mesh, grid = _mesh_args(planes, faces, weights, inverses), _grid_args(width, src_width)
@@ -301,7 +314,7 @@ def blend_blocks(
     ndarray of bool, shape (H, W)
         The pixels in none of their candidate faces (not written).
     """
-    blend_cells = _compiled()[4]
+    blend_cells = _compiled().blend_cells
     step = out.shape[1] // cells.shape[1]
     planes = np.ascontiguousarray(planes, np.float64)
     slack = 1e-12 * np.linalg.norm(planes, axis=2)  # locate.EDGE_TOLERANCE, per edge plane
@@ -335,7 +348,7 @@ def interpolate_shift(shift: NDArray[np.float32], exact: NDArray[np.bool_], src_
     out : ndarray of float32, shape (H, W, 2)
         Padded source coordinates, as :func:`blend_coordinates` gives.
     """
-    interpolate_rows = _compiled()[5]
+    interpolate_rows = _compiled().interpolate_rows
     step = out.shape[1] // exact.shape[1]
     padded = np.ascontiguousarray(np.concatenate([shift[:, -1:], shift, shift[:, :1]], axis=1), np.float64)
     lon, lat = coords.grid_lonlat(out.shape[1])
@@ -380,7 +393,7 @@ def fold_mask(coordinates: NDArray[np.float32], src_width: int, pole_margin: flo
     -------
     ndarray of bool, shape (H, W)
     """
-    fold_rows = _compiled()[1]
+    fold_rows = _compiled().fold_rows
     mask = np.zeros(coordinates.shape[:2], dtype=bool)
     per_degree = src_width / 360.0
     top = pole_margin * per_degree - 0.5
@@ -406,7 +419,7 @@ def paint(run_face: NDArray[np.int64], flat_start: NDArray[np.int64], length: ND
         -1 where no run reaches.
     """
     out = np.full(size, -1, np.int32)
-    _compiled()[2](run_face.astype(np.int32), flat_start.astype(np.int64), length.astype(np.int64), out)
+    _compiled().paint_runs(run_face.astype(np.int32), flat_start.astype(np.int64), length.astype(np.int64), out)
     return out
 
 
@@ -430,7 +443,7 @@ def strongest_weights(
     rows, cols = np.nonzero(mask)
     lon, lat = (np.radians(x) for x in coords.grid_lonlat(mask.shape[1]))
     out = np.zeros(weights.shape[1])
-    _compiled()[3](
+    _compiled().strongest(
         rows,
         cols,
         face,
