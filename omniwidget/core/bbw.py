@@ -24,7 +24,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 from scipy.sparse.csgraph import connected_components
-from scipy.spatial import ConvexHull, cKDTree
+from scipy.spatial import ConvexHull
 
 from ._checks import whole_number
 
@@ -579,33 +579,12 @@ def _hull(u: FloatArray) -> IntArray | None:
 
 
 def _prolongation(u_fine: FloatArray, u_coarse: FloatArray, f_coarse: IntArray) -> sp.csr_matrix:
-    """Barycentric interpolation from a coarse sphere mesh onto fine points (radial projection)."""
-    n_c = u_coarse.shape[0]
-    corners = f_coarse.ravel()
-    order = np.argsort(corners, kind="stable")
-    counts = np.bincount(corners, minlength=n_c)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    width = int(counts.max())
-    slot = np.arange(corners.size) - np.repeat(starts, counts)
-    incident = np.full((n_c, width), -1, dtype=np.int64)
-    incident[corners[order], slot] = order // 3
-    _, nearest = cKDTree(u_coarse).query(u_fine)
-    cand = incident[nearest]  # (n_f, width) faces around the nearest coarse vertex
-    tri = u_coarse[f_coarse[np.maximum(cand, 0)]]  # (n_f, width, 3, 3)
-    a, b, c = tri[..., 0, :], tri[..., 1, :], tri[..., 2, :]
-    p = u_fine[:, None, :]
-    bary = np.stack(
-        [np.einsum("...i,...i", p, np.cross(b, c)), np.einsum("...i,...i", p, np.cross(c, a)), np.einsum("...i,...i", p, np.cross(a, b))],
-        axis=-1,
-    )
-    total = bary.sum(axis=-1)
-    score = np.where((cand >= 0) & (total > 0), bary.min(axis=-1) / np.where(total > 0, total, 1.0), -np.inf)
-    best = np.argmax(score, axis=1)
-    rows = np.arange(u_fine.shape[0])
-    weights = np.maximum(bary[rows, best], 0.0)
-    weights /= weights.sum(axis=1, keepdims=True)
-    cols = f_coarse[cand[rows, best]]
-    return sp.csr_matrix((weights.ravel(), (np.repeat(rows, 3), cols.ravel())), shape=(u_fine.shape[0], n_c))
+    """Barycentric interpolation from a coarse sphere mesh onto fine points (radial projection), (n_fine, n_coarse)."""
+    from .locate import locate_points
+
+    face, bary = locate_points(u_coarse, f_coarse, u_fine)
+    rows = np.repeat(np.arange(u_fine.shape[0]), 3)
+    return sp.csr_matrix((bary.ravel(), (rows, f_coarse[face].ravel())), shape=(u_fine.shape[0], u_coarse.shape[0]))
 
 
 def _hierarchy(v: FloatArray, f: IntArray, b: IntArray) -> list[_Level]:
