@@ -38,7 +38,6 @@ import platform
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 import warnings
 from dataclasses import replace
@@ -51,10 +50,10 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 sys.path.insert(0, str(REPO_ROOT / "bench"))
 
+import bench_frames  # noqa: E402
 from bench_bbw import icosphere, point_handles  # noqa: E402
 from bench_blend import SEED, build_scene  # noqa: E402
 
-import omniwidget as ow  # noqa: E402
 from omniwidget.core import _kernels  # noqa: E402
 from omniwidget.core.bbw import bbw  # noqa: E402
 from omniwidget.core.handles import Options, PointHandle  # noqa: E402
@@ -235,29 +234,10 @@ def scale() -> None:
     )
 
 
-def frames(image) -> None:
+def frames() -> None:
     print("\n6. many frames, one map: 60 JPEG frames at 2048 x 1024")
-    from omniwidget.cli import DEMO_HANDLES
-    from omniwidget.core.frames import map_coordinates, warp_frames
-
-    base = cv2.resize(ow.sample_image(), (2048, 1024), interpolation=cv2.INTER_CUBIC)
-    with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
-        inputs = []
-        for i in range(60):
-            path = folder / f"f{i:03d}.jpg"
-            cv2.imwrite(str(path), cv2.convertScaleAbs(base[..., ::-1], alpha=1.0, beta=(i % 20) - 10))
-            inputs.append(path)
-        (folder / "out").mkdir()
-        outputs = [folder / "out" / p.name for p in inputs]
-        coordinates = map_coordinates(warp(base, ow.Handles.from_dict(DEMO_HANDLES), warn=False).inverse_map(), 2048)
-        seconds, _ = median_time(lambda: warp_frames(inputs, outputs, coordinates, base.shape[:2]), 3, warmup=0)
-        start = time.perf_counter()
-        for src, dst in zip(inputs, outputs, strict=True):
-            frame = cv2.imread(str(src))
-            cv2.imwrite(str(dst), cv2.remap(pad_panorama(frame), coordinates, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE))
-        plain = time.perf_counter() - start
-    row("6. frames per second, map known", f"{60 / seconds:.0f} /s", f"plain one-thread OpenCV loop {60 / plain:.0f} /s", ">= 30 /s")
+    t = bench_frames.measure(60, 3)
+    row("6. frames per second, map known", f"{60 / t['ours']:.0f} /s", f"plain one-thread OpenCV loop {60 / t['plain']:.0f} /s", ">= 30 /s")
 
 
 def write_results() -> None:
@@ -297,7 +277,7 @@ def main() -> int:
     per_pixel(image, result, slow_result)
     preview(image, scene, repeat)
     scale()
-    frames(image)
+    frames()
     print("\n| figure | measured | reference (same run) | target |")
     for r in ROWS:
         print("| " + " | ".join(r) + " |")

@@ -23,7 +23,6 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from functools import cache
 from types import SimpleNamespace
 
@@ -31,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import coords
+from .locate import EDGE_TOLERANCE
 from .moebius import Moebius
 from .warping import PAD, _run_blocks
 
@@ -317,20 +317,17 @@ def blend_blocks(
     blend_cells = _compiled().blend_cells
     step = out.shape[1] // cells.shape[1]
     planes = np.ascontiguousarray(planes, np.float64)
-    slack = 1e-12 * np.linalg.norm(planes, axis=2)  # locate.EDGE_TOLERANCE, per edge plane
+    slack = EDGE_TOLERANCE * np.linalg.norm(planes, axis=2)  # what locate tolerates, per edge plane
     mesh = _mesh_args(planes, faces, weights, inverses)
     grid = _grid_args(out.shape[1], src_width)
     missed = np.zeros(out.shape[:2], dtype=bool)
     cell_r, cell_c = np.nonzero(cells)
     samples = np.ascontiguousarray(samples, np.int32)
 
-    def work(block: slice) -> None:
-        blend_cells(block.start, block.stop, cell_r, cell_c, step, samples, mesh[0], slack, *mesh[1:], *grid, out, missed)
-
-    n = len(cell_r)
-    chunk = max(1, -(-n // (2 * (os.cpu_count() or 1))))
-    with ThreadPoolExecutor(os.cpu_count() or 1) as pool:
-        list(pool.map(work, [slice(i, min(i + chunk, n)) for i in range(0, n, chunk)]))
+    _run_blocks(
+        len(cell_r),
+        lambda block: blend_cells(block.start, block.stop, cell_r, cell_c, step, samples, mesh[0], slack, *mesh[1:], *grid, out, missed),
+    )
     return missed
 
 

@@ -28,6 +28,18 @@ from .warping import ORDERS, PAD, Order, pad_panorama, remap
 __all__ = ["FrameReport", "load_map", "map_coordinates", "warp_frames"]
 
 
+def _checked_map(inverse_map: ArrayLike) -> NDArray[np.floating]:
+    """``inverse_map`` as an array, if it is a map of ``[lon, lat]`` degrees; else an ImageError saying what is wrong."""
+    m = np.asarray(inverse_map)
+    if m.ndim != 3 or m.shape[2] != 2 or m.shape[1] != 2 * m.shape[0] or m.shape[0] < 1:
+        raise ImageError(f"a map must have shape (H, 2H, 2) of [lon, lat] degrees, got {m.shape}")
+    if not np.issubdtype(m.dtype, np.floating) or not np.all(np.isfinite(m)):
+        raise ImageError("a map must hold finite floating-point [lon, lat] degrees")
+    if np.abs(m[..., 1]).max() > 90.0 + 1e-4 or np.abs(m[..., 0]).max() > 360.0:
+        raise ImageError("a map's latitudes must lie in [-90, 90] and its longitudes in [-360, 360] degrees")
+    return m
+
+
 def map_coordinates(inverse_map: ArrayLike, src_width: int) -> NDArray[np.float32]:
     """Source pixel coordinates of an inverse map, ready for :func:`~omniwidget.core.warping.remap`.
 
@@ -49,13 +61,7 @@ def map_coordinates(inverse_map: ArrayLike, src_width: int) -> NDArray[np.float3
     ImageError
         If the map has the wrong shape or holds non-finite or out-of-range values.
     """
-    m = np.asarray(inverse_map)
-    if m.ndim != 3 or m.shape[2] != 2 or m.shape[1] != 2 * m.shape[0] or m.shape[0] < 1:
-        raise ImageError(f"a map must have shape (H, 2H, 2) of [lon, lat] degrees, got {m.shape}")
-    if not np.issubdtype(m.dtype, np.floating) or not np.all(np.isfinite(m)):
-        raise ImageError("a map must hold finite floating-point [lon, lat] degrees")
-    if np.abs(m[..., 1]).max() > 90.0 + 1e-4 or np.abs(m[..., 0]).max() > 360.0:
-        raise ImageError("a map's latitudes must lie in [-90, 90] and its longitudes in [-360, 360] degrees")
+    m = _checked_map(inverse_map)
     px = coords.lonlat_to_px(np.asarray(m, np.float64).reshape(-1, 2), src_width).reshape(m.shape)
     px[..., 0] = np.mod(px[..., 0] + 0.5, src_width) - 0.5  # longitudes wrap; the padding covers the rest
     return (px + PAD).astype(np.float32)
@@ -83,7 +89,7 @@ def load_map(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     except (OSError, ValueError) as exc:
         raise ImageError(f"{path}: cannot read the map ({exc})") from None
     try:
-        map_coordinates(m, 2)  # the checks alone
+        _checked_map(m)
     except ImageError as exc:
         raise ImageError(f"{path}: {exc}") from None
     return np.asarray(m, np.float32)

@@ -368,7 +368,7 @@ def warp(
     if _kernels.available():
         step = 1 if exact else coarse_step(width)
         if step > 1:
-            coordinates, face, planes, _ = sampled_coordinates(
+            coordinates, face, planes = sampled_coordinates(
                 inverses, mesh.vertices, mesh.faces, weights, width, image.shape[1], step, constraints.points
             )
         else:

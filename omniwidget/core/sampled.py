@@ -94,7 +94,7 @@ def sampled_coordinates(
     *,
     band: int = BAND,
     tolerance: float = TOLERANCE,
-) -> tuple[NDArray[np.float32], NDArray[np.int32], NDArray[np.float64], float]:
+) -> tuple[NDArray[np.float32], NDArray[np.int32], NDArray[np.float64]]:
     """Source pixel coordinates of every output pixel, from the blended map sampled every ``step`` pixels.
 
     Needs the compiled kernels (:func:`omniwidget.core._kernels.available`).
@@ -128,8 +128,6 @@ def sampled_coordinates(
         The samples' faces (``w = width / step``).
     planes : ndarray of float64, shape (m, 3, 3)
         The faces' edge planes (:func:`~omniwidget.core.locate.locate_faces`).
-    exact_share : float
-        The share of output pixels evaluated exactly.
     """
     if step < 2 or width % (2 * step):
         raise ValueError(f"step must be at least 2 and divide the grid evenly: width {width}, step {step}")
@@ -169,4 +167,4 @@ def sampled_coordinates(
         lon, lat = coords.grid_lonlat(width)
         src = blended_points(inverses, vertices, faces, weights, coords.lonlat_to_xyz(np.stack([lon[m_cols], lat[m_rows]], axis=-1)))
         out[m_rows, m_cols] = coords.lonlat_to_px(src, src_width) + PAD
-    return out, face, planes, float(exact.mean())
+    return out, face, planes
