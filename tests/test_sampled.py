@@ -7,7 +7,7 @@ import pytest
 
 from omniwidget.core import _kernels, coords
 from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.locate import locate_faces
+from omniwidget.core.locate import face_neighbours, locate_faces
 from omniwidget.core.pipeline import warp
 from omniwidget.core.quality import cage_motion, straightness
 from omniwidget.core.sampled import coarse_step, sampled_coordinates
@@ -90,18 +90,43 @@ def test_a_pole_brought_into_view_is_evaluated_exactly():
     assert np.abs(fast.image.astype(int) - exact.image.astype(int)).mean() < 0.5
 
 
-def test_pixels_outside_their_candidate_faces_are_reported(room):
+def test_pixels_outside_their_candidate_faces_are_walked_to_or_reported(room):
+    """Every block told that its faces are face 0's: the walk across the mesh finds each pixel's face anyway."""
     _, _, fast, _ = room
     inverses = [c.moebius.inverse for c in fast.controls]
     face, planes = locate_faces(fast.vertices, fast.faces, 64)
-    wrong = np.zeros_like(face)  # every block told that its faces are face 0's
-    out = np.full((128, 256, 2), -1.0, np.float32)
+    wrong = np.zeros_like(face)
     cells = np.ones(face.shape, dtype=bool)
-    missed = _kernels.blend_blocks(cells, wrong, planes, fast.faces, fast.weights, inverses, W, out)
     truth, _ = locate_faces(fast.vertices, fast.faces, 256)
-    assert np.array_equal(missed, truth != 0)
     full = _kernels.blend_coordinates(truth, planes, fast.faces, fast.weights, inverses, W)
+    assert (truth != 0).mean() > 0.99  # almost every pixel needs the walk, from far away
+
+    out = np.full((128, 256, 2), -1.0, np.float32)
+    missed = _kernels.blend_blocks(cells, wrong, planes, fast.faces, fast.weights, inverses, W, out, walk=len(fast.faces))
+    assert not missed.any()
+    # a pixel on an edge may be found in the face across it, where the blend is the same up to rounding
+    assert np.abs(out - full).max() < 1e-2, np.abs(out - full).max()
+
+    out = np.full((128, 256, 2), -1.0, np.float32)
+    missed = _kernels.blend_blocks(cells, wrong, planes, fast.faces, fast.weights, inverses, W, out, walk=0)
+    assert np.array_equal(missed, truth != 0)  # without the walk, only face 0's pixels are found
     assert np.array_equal(out[~missed], full[~missed]) and np.all(out[missed] == -1)
+
+
+def test_face_neighbours_are_the_faces_across_each_edge(room):
+    _, _, fast, _ = room
+    f = fast.faces
+    across = face_neighbours(f)
+    for k in range(3):
+        edge = f[:, [k, (k + 1) % 3]]
+        twin = f[across[:, k]]
+        # the face across holds the edge reversed
+        holds = np.zeros(len(f), dtype=bool)
+        for m in range(3):
+            holds |= (twin[:, m] == edge[:, 1]) & (twin[:, (m + 1) % 3] == edge[:, 0])
+        assert holds.all()
+    with pytest.raises(ValueError, match="not closed"):
+        face_neighbours(f[1:])
 
 
 def test_coarse_step():

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import coords
-from .locate import EDGE_TOLERANCE
+from .locate import EDGE_TOLERANCE, face_neighbours
 from .moebius import Moebius
 from .warping import PAD, _run_blocks
 
@@ -43,6 +43,8 @@ _AROUND_COLS = (0, -1, 1, 0, 0, -1, 1, -1, 1)
 #: :data:`omniwidget.core.blend.NEGLIGIBLE` over a whole block of rows; both are far below
 #: what a pixel can show).
 _NEGLIGIBLE = 1e-9
+#: Faces a pixel in none of its block's candidate faces is walked across, at most, before it is left to the caller.
+WALK_STEPS = 256
 
 
 @cache
@@ -123,6 +125,8 @@ def _compiled() -> SimpleNamespace:
         samples,
         planes,
         slack,
+        neighbours,
+        walk,
         corners,
         weights,
         mats,
@@ -157,6 +161,18 @@ def _compiled() -> SimpleNamespace:
                         if inside:
                             f = g
                             break
+                    if f < 0:  # a finer mesh than the samples: walk there from the block's face
+                        g = samples[i, j]
+                        for _ in range(walk):
+                            worst, across = 0.0, -1
+                            for e in range(3):
+                                s = planes[g, e, 0] * x + planes[g, e, 1] * y + planes[g, e, 2] * z + slack[g, e]
+                                if s < worst:
+                                    worst, across = s, e
+                            if across < 0:
+                                f = g
+                                break
+                            g = neighbours[g, across]
                     if f < 0:
                         missed[r, c] = True
                         continue
@@ -165,27 +181,30 @@ def _compiled() -> SimpleNamespace:
                     out[r, c, 1] = y0 - lat * kx
 
     @njit(nogil=True, cache=True)
-    def interpolate_rows(r0, r1, shift, step, exact, src_width, per_degree, lon, lat, pad, out):  # pragma: no cover
+    def interpolate_rows(r0, r1, shift, step, exact, column, part, base_x, src_width, per_degree, lat, pad, out):  # pragma: no cover
         rows_c, cols_c = exact.shape
+        row_x = np.empty(shift.shape[1])
+        row_y = np.empty(shift.shape[1])
         for r in range(r0, r1):
             yc = min(max((r + 0.5) / step - 0.5, 0.0), rows_c - 1.0)
             i0 = min(int(yc), rows_c - 2) if rows_c > 1 else 0
             fy = yc - i0
+            for j in range(shift.shape[1]):  # the samples' displacements interpolated to this row
+                row_x[j] = shift[i0, j, 0] + fy * (shift[i0 + 1, j, 0] - shift[i0, j, 0])
+                row_y[j] = shift[i0, j, 1] + fy * (shift[i0 + 1, j, 1] - shift[i0, j, 1])
             base_y = (90.0 - lat[r]) * per_degree - 0.5 + pad
+            skip = exact[r // step]
             for c in range(out.shape[1]):
-                if exact[r // step, c // step]:
+                if skip[c // step]:
                     continue
-                xc = (c + 0.5) / step - 0.5 + 1.0  # shift has one wrapped sample on each side
-                j0 = int(math.floor(xc))
-                fx = xc - j0
-                top_x = shift[i0, j0, 0] + fx * (shift[i0, j0 + 1, 0] - shift[i0, j0, 0])
-                top_y = shift[i0, j0, 1] + fx * (shift[i0, j0 + 1, 1] - shift[i0, j0, 1])
-                bot_x = shift[i0 + 1, j0, 0] + fx * (shift[i0 + 1, j0 + 1, 0] - shift[i0 + 1, j0, 0])
-                bot_y = shift[i0 + 1, j0, 1] + fx * (shift[i0 + 1, j0 + 1, 1] - shift[i0 + 1, j0, 1])
-                x = (lon[c] + 180.0) * per_degree + top_x + fy * (bot_x - top_x)  # x + 0.5 of the unpadded source
-                x -= math.floor(x / src_width) * src_width
+                j0, fx = column[c], part[c]
+                x = base_x[c] + row_x[j0] + fx * (row_x[j0 + 1] - row_x[j0])  # x + 0.5 of the unpadded source
+                if x >= src_width:
+                    x -= src_width
+                elif x < 0.0:
+                    x += src_width
                 out[r, c, 0] = x - 0.5 + pad
-                out[r, c, 1] = base_y + top_y + fy * (bot_y - top_y)
+                out[r, c, 1] = base_y + row_y[j0] + fx * (row_y[j0 + 1] - row_y[j0])
 
     @njit(nogil=True, cache=True)
     def fold_rows(r0, r1, coordinates, src_width, offset, top, bottom, mask):  # pragma: no cover
@@ -293,6 +312,7 @@ def blend_blocks(
     inverses: Sequence[Moebius],
     src_width: int,
     out: NDArray[np.float32],
+    walk: int = WALK_STEPS,
 ) -> NDArray[np.bool_]:
     """:func:`blend_coordinates` in chosen blocks of output pixels, located from their samples' faces; written into ``out``.
 
@@ -307,12 +327,16 @@ def blend_blocks(
     planes, faces, weights, inverses, src_width
         As in :func:`blend_coordinates`.
     out : ndarray of float32, shape (H, W, 2)
-        Coordinates, overwritten in the blocks at the pixels that lie in a candidate face.
+        Coordinates, overwritten in the blocks at the pixels that are found.
+    walk : int
+        A pixel in none of its candidate faces (the mesh is finer than the samples there)
+        is walked to its face across the mesh's edges from its block's sample's face,
+        through at most this many faces.
 
     Returns
     -------
     ndarray of bool, shape (H, W)
-        The pixels in none of their candidate faces (not written).
+        The pixels not found (not written).
     """
     blend_cells = _compiled().blend_cells
     step = out.shape[1] // cells.shape[1]
@@ -320,13 +344,16 @@ def blend_blocks(
     slack = EDGE_TOLERANCE * np.linalg.norm(planes, axis=2)  # what locate tolerates, per edge plane
     mesh = _mesh_args(planes, faces, weights, inverses)
     grid = _grid_args(out.shape[1], src_width)
+    neighbours = face_neighbours(mesh[1])
     missed = np.zeros(out.shape[:2], dtype=bool)
     cell_r, cell_c = np.nonzero(cells)
     samples = np.ascontiguousarray(samples, np.int32)
 
     _run_blocks(
         len(cell_r),
-        lambda block: blend_cells(block.start, block.stop, cell_r, cell_c, step, samples, mesh[0], slack, *mesh[1:], *grid, out, missed),
+        lambda block: blend_cells(
+            block.start, block.stop, cell_r, cell_c, step, samples, mesh[0], slack, neighbours, walk, *mesh[1:], *grid, out, missed
+        ),
     )
     return missed
 
@@ -351,9 +378,15 @@ def interpolate_shift(shift: NDArray[np.float32], exact: NDArray[np.bool_], src_
     lon, lat = coords.grid_lonlat(out.shape[1])
     exact = np.ascontiguousarray(exact)
     per_degree = src_width / 360.0
+    xc = (np.arange(out.shape[1]) + 0.5) / step + 0.5  # in samples; shift has one wrapped sample on each side
+    column = np.floor(xc).astype(np.int64)
+    part = xc - column
+    base_x = (lon + 180.0) * per_degree
     _run_blocks(
         len(out),
-        lambda rows: interpolate_rows(rows.start, rows.stop, padded, step, exact, float(src_width), per_degree, lon, lat, float(PAD), out),
+        lambda rows: interpolate_rows(
+            rows.start, rows.stop, padded, step, exact, column, part, base_x, float(src_width), per_degree, lat, float(PAD), out
+        ),
     )
 
 

@@ -27,7 +27,17 @@ from numpy.typing import ArrayLike, NDArray
 from . import coords
 from ._checks import whole_number
 
-__all__ = ["DEGENERATE", "EDGE_TOLERANCE", "UNIT_TOLERANCE", "barycentric", "interpolate", "locate_faces", "locate_grid", "locate_points"]
+__all__ = [
+    "DEGENERATE",
+    "EDGE_TOLERANCE",
+    "UNIT_TOLERANCE",
+    "barycentric",
+    "face_neighbours",
+    "interpolate",
+    "locate_faces",
+    "locate_grid",
+    "locate_points",
+]
 
 #: A direction within this distance (radians) outside a face's edge plane still counts as in it,
 #: so directions on shared edges are never lost to rounding.
@@ -74,6 +84,41 @@ def _check_closed(faces: IntArray, n: int) -> None:
     if not np.array_equal(key, reverse):
         missing = np.setdiff1d(key, reverse, assume_unique=True)[0]
         raise ValueError(f"the mesh is not closed: the edge {missing // n} -> {missing % n} has no opposite edge")
+
+
+def face_neighbours(faces: ArrayLike) -> NDArray[np.int32]:
+    """The face across each edge of a closed, consistently oriented triangle mesh.
+
+    Parameters
+    ----------
+    faces : array_like of int, shape (m, 3)
+        Triangles; edge ``k`` of face ``f`` runs from corner ``k`` to corner ``k + 1`` (mod 3),
+        the edge whose plane is ``planes[f, k]`` in :func:`locate_faces`.
+
+    Returns
+    -------
+    ndarray of int32, shape (m, 3)
+        ``out[f, k]`` is the face that holds edge ``k`` of face ``f`` reversed.
+
+    Raises
+    ------
+    ValueError
+        If some edge has no reversed twin (an open or inconsistently oriented mesh).
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise ValueError(f"faces must have shape (m, 3), got {f.shape}")
+    n = int(f.max()) + 1
+    start, end = f.ravel(), np.roll(f, -1, axis=1).ravel()
+    key = start * n + end
+    order = np.argsort(key)
+    at = np.searchsorted(key[order], end * n + start)
+    found = at < key.size
+    found[found] = key[order[at[found]]] == (end * n + start)[found]
+    if not found.all():
+        i = int(np.flatnonzero(~found)[0])
+        raise ValueError(f"the edge {start[i]} -> {end[i]} of face {i // 3} has no opposite edge: the mesh is not closed")
+    return (order[at] // 3).astype(np.int32).reshape(f.shape)
 
 
 def _prepare(vertices: ArrayLike, faces: ArrayLike) -> _Mesh:

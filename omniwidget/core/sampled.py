@@ -148,10 +148,11 @@ def sampled_coordinates(
     bad[:-1] |= jump
     jump = np.abs(np.roll(shift[..., 0], -1, axis=1) - shift[..., 0]) > _JUMP * per_degree
     bad |= jump | np.roll(jump, 1, axis=1)
-    second = np.zeros(bad.shape, np.float32)
-    second[1:-1] = np.abs(shift[2:] - 2 * shift[1:-1] + shift[:-2]).max(axis=-1)
-    second = np.maximum(second, np.abs(np.roll(shift, -1, axis=1) - 2 * shift + np.roll(shift, 1, axis=1)).max(axis=-1))
-    bad |= second > 4 * tolerance
+    limit = 4 * tolerance
+    down = np.abs(shift[2:] - 2 * shift[1:-1] + shift[:-2]) > limit
+    bad[1:-1] |= down[..., 0] | down[..., 1]
+    across = np.abs(np.roll(shift, -1, axis=1) - 2 * shift + np.roll(shift, 1, axis=1)) > limit
+    bad |= across[..., 0] | across[..., 1]
     handles = np.zeros_like(bad)
     col, row = np.floor(coords.lonlat_to_px(coords.xyz_to_lonlat(near), coarse_width) + 0.5).astype(np.int64).T
     handles[np.clip(row, 0, coarse_width // 2 - 1), col % coarse_width] = True
