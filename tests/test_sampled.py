@@ -49,7 +49,7 @@ def room():
 
 def test_sampled_warp_matches_the_exact_one(room):
     _, _, fast, exact = room
-    assert "locate" not in fast.timings and "locate" in exact.timings  # the sampled path ran
+    assert not np.array_equal(fast.image, exact.image)  # the sampled path ran (the exact one is deterministic)
     difference = np.abs(fast.image.astype(int) - exact.image.astype(int))
     error = _source_error(fast, exact)
     print(

@@ -34,16 +34,13 @@ from .locate import EDGE_TOLERANCE, face_neighbours
 from .moebius import Moebius
 from .warping import PAD, _run_blocks
 
-__all__ = ["available", "blend_blocks", "blend_coordinates", "interpolate_shift", "fold_mask", "paint", "strongest_weights"]
+__all__ = ["available", "blend_blocks", "blend_coordinates", "fold_mask", "interpolate_shift", "paint", "strongest_weights", "walk_blend"]
 
-#: A pixel's candidate faces: those of its block's sample, then of the samples around it.
-_AROUND_ROWS = (0, 0, 0, -1, 1, -1, -1, 1, 1)
-_AROUND_COLS = (0, -1, 1, 0, 0, -1, 1, -1, 1)
 #: Weights at most this are skipped (the numpy path skips a control only where it is below
 #: :data:`omniwidget.core.blend.NEGLIGIBLE` over a whole block of rows; both are far below
 #: what a pixel can show).
 _NEGLIGIBLE = 1e-9
-#: Faces a pixel in none of its block's candidate faces is walked across, at most, before it is left to the caller.
+#: Faces a pixel's walk from its neighbour's face crosses, at most, before it is left to a slower search.
 WALK_STEPS = 256
 
 
@@ -115,6 +112,68 @@ def _compiled() -> SimpleNamespace:
                 out[r, c, 0] = lon * kx + x0
                 out[r, c, 1] = y0 - lat * kx
 
+    @njit(nogil=True, cache=True, inline="always")
+    def walk_to(g, x, y, z, planes, slack, neighbours, steps):  # pragma: no cover
+        """The face holding (x, y, z), walked to from face g across the edges it lies beyond; -1 after ``steps`` faces.
+
+        A visibility walk: on a Delaunay mesh of the sphere (a convex hull, as the adaptive
+        mesh is) it cannot cycle, and from a nearby pixel's face it takes a step or two.
+        """
+        for n in range(steps + 1):
+            worst, across = 0.0, -1
+            for e in range(3):
+                s = planes[g, e, 0] * x + planes[g, e, 1] * y + planes[g, e, 2] * z + slack[g, e]
+                if s < worst:
+                    worst, across = s, e
+            if across < 0:
+                return g
+            if n == steps:
+                break
+            g = neighbours[g, across]
+        return -1
+
+    @njit(nogil=True, cache=True)
+    def walk_blend_rows(
+        r0,
+        r1,
+        seed,
+        planes,
+        slack,
+        neighbours,
+        walk,
+        corners,
+        weights,
+        mats,
+        cos_lon,
+        sin_lon,
+        cos_lat,
+        sin_lat,
+        kx,
+        x0,
+        y0,
+        out,
+        face,
+        missed,
+    ):  # pragma: no cover
+        first = walk_to(seed, cos_lat[r0] * cos_lon[0], cos_lat[r0] * sin_lon[0], sin_lat[r0], planes, slack, neighbours, planes.shape[0])
+        for r in range(r0, r1):
+            g = first
+            for c in range(face.shape[1]):
+                x = cos_lat[r] * cos_lon[c]
+                y = cos_lat[r] * sin_lon[c]
+                z = sin_lat[r]
+                f = walk_to(g, x, y, z, planes, slack, neighbours, walk) if g >= 0 else -1
+                face[r, c] = f
+                if f < 0:
+                    missed[r, c] = True
+                    continue
+                if c == 0:
+                    first = f  # the next row starts from here
+                g = f
+                lon, lat = blend_pixel(f, x, y, z, planes, corners, weights, mats)
+                out[r, c, 0] = lon * kx + x0
+                out[r, c, 1] = y0 - lat * kx
+
     @njit(nogil=True, cache=True)
     def blend_cells(
         n0,
@@ -140,42 +199,19 @@ def _compiled() -> SimpleNamespace:
         out,
         missed,
     ):  # pragma: no cover
-        rows_c, cols_c = samples.shape
         for n in range(n0, n1):
             i, j = cell_r[n], cell_c[n]
+            g = samples[i, j]
             for r in range(i * step, (i + 1) * step):
                 for c in range(j * step, (j + 1) * step):
                     x = cos_lat[r] * cos_lon[c]
                     y = cos_lat[r] * sin_lon[c]
                     z = sin_lat[r]
-                    f = -1
-                    for h in range(9):  # the faces of the block's sample and its neighbours'
-                        ii = min(max(i + _AROUND_ROWS[h], 0), rows_c - 1)
-                        jj = (j + _AROUND_COLS[h]) % cols_c
-                        g = samples[ii, jj]
-                        inside = True
-                        for e in range(3):
-                            if planes[g, e, 0] * x + planes[g, e, 1] * y + planes[g, e, 2] * z < -slack[g, e]:
-                                inside = False
-                                break
-                        if inside:
-                            f = g
-                            break
-                    if f < 0:  # a finer mesh than the samples: walk there from the block's face
-                        g = samples[i, j]
-                        for _ in range(walk):
-                            worst, across = 0.0, -1
-                            for e in range(3):
-                                s = planes[g, e, 0] * x + planes[g, e, 1] * y + planes[g, e, 2] * z + slack[g, e]
-                                if s < worst:
-                                    worst, across = s, e
-                            if across < 0:
-                                f = g
-                                break
-                            g = neighbours[g, across]
+                    f = walk_to(g, x, y, z, planes, slack, neighbours, walk)
                     if f < 0:
                         missed[r, c] = True
                         continue
+                    g = f  # the next pixel starts from its neighbour's face
                     lon, lat = blend_pixel(f, x, y, z, planes, corners, weights, mats)
                     out[r, c, 0] = lon * kx + x0
                     out[r, c, 1] = y0 - lat * kx
@@ -255,6 +291,7 @@ def _compiled() -> SimpleNamespace:
     return SimpleNamespace(
         blend_rows=blend_rows,
         blend_cells=blend_cells,
+        walk_blend_rows=walk_blend_rows,
         interpolate_rows=interpolate_rows,
         fold_rows=fold_rows,
         paint_runs=paint_runs,
@@ -303,6 +340,69 @@ def blend_coordinates(
     return out
 
 
+def walk_blend(
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    weights: NDArray[np.floating],
+    inverses: Sequence[Moebius],
+    width: int,
+    src_width: int,
+    walk: int = WALK_STEPS,
+) -> tuple[NDArray[np.float32], NDArray[np.int32], NDArray[np.float64]]:
+    """:func:`blend_coordinates` on a whole grid, each pixel's face found by walking from its neighbour's.
+
+    Along a row each pixel's face is walked to across the mesh's edges from the face of the
+    pixel before it (a step or two at most, since neighbours lie a pixel apart), and each row
+    starts from the face of the first pixel of the row above. No pass paints the faces first
+    (:func:`omniwidget.core.locate.locate_faces`); should a walk not arrive within ``walk``
+    faces (it cannot cycle on a convex-hull mesh such as the adaptive mesh, but the mesh
+    might be another), the grid is located and blended the painted way instead.
+
+    Parameters
+    ----------
+    vertices, faces : ndarray, shapes (n, 3) float64 and (m, 3) int64
+        A closed, outward-oriented mesh of the unit sphere.
+    weights, inverses, src_width
+        As in :func:`blend_coordinates`.
+    width : int
+        Output width (even); the height is ``width / 2``.
+    walk : int
+        Faces one pixel's walk may cross.
+
+    Returns
+    -------
+    coordinates : ndarray of float32, shape (width / 2, width, 2)
+        As :func:`blend_coordinates` gives.
+    face : ndarray of int32, shape (width / 2, width)
+        Each pixel's face.
+    planes : ndarray of float64, shape (m, 3, 3)
+        The faces' edge planes, as :func:`omniwidget.core.locate.locate_faces` gives them.
+    """
+    kernel = _compiled().walk_blend_rows
+    v = np.asarray(vertices, np.float64)
+    f = np.ascontiguousarray(faces, np.int64)
+    corner = [v[f[:, k]] for k in range(3)]
+    planes = np.ascontiguousarray(np.stack([np.cross(corner[k], corner[(k + 1) % 3]) for k in range(3)], axis=1))
+    slack = EDGE_TOLERANCE * np.linalg.norm(planes, axis=2)
+    neighbours = face_neighbours(f)
+    mesh = _mesh_args(planes, f, weights, inverses)
+    height = width // 2
+    grid = _grid_args(width, src_width)
+    out = np.empty((height, width, 2), np.float32)
+    face = np.empty((height, width), np.int32)
+    missed = np.zeros((height, width), dtype=bool)
+    _run_blocks(
+        height,
+        lambda rows: kernel(rows.start, rows.stop, 0, planes, slack, neighbours, walk, *mesh[1:], *grid, out, face, missed),
+    )
+    if missed.any():
+        from .locate import locate_faces
+
+        face, planes = locate_faces(v, f, width)
+        out = blend_coordinates(face, planes, f, weights, inverses, src_width)
+    return out, face, planes
+
+
 def blend_blocks(
     cells: NDArray[np.bool_],
     samples: NDArray[np.int32],
@@ -323,15 +423,14 @@ def blend_blocks(
         sample ``(i, j)`` of a grid ``s = W / w`` times coarser.
     samples : ndarray of int32, shape (h, w)
         The samples' faces (:func:`omniwidget.core.locate.locate_faces` on the coarse grid):
-        a pixel's candidate faces are its block's sample's and those of the 8 samples around it.
+        each block's walk starts from its sample's face.
     planes, faces, weights, inverses, src_width
         As in :func:`blend_coordinates`.
     out : ndarray of float32, shape (H, W, 2)
         Coordinates, overwritten in the blocks at the pixels that are found.
     walk : int
-        A pixel in none of its candidate faces (the mesh is finer than the samples there)
-        is walked to its face across the mesh's edges from its block's sample's face,
-        through at most this many faces.
+        Each pixel is walked to its face across the mesh's edges (:func:`walk_blend`), from
+        its neighbour's face, through at most this many faces.
 
     Returns
     -------

@@ -16,6 +16,7 @@ blend of eq. (2) is an inverse map:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,18 +84,30 @@ class Constraints:
     rectified: RectifySolution | None = None
 
 
+def _cross(a: NDArray, b: NDArray) -> tuple[float, float, float]:
+    """``a × b`` of two 3-vectors, without ``np.cross``'s overhead (it is called for every pair of lines)."""
+    a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
+    b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
+    return (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
+
+
+def _dot(a: Sequence[float], b: Sequence[float]) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
 def _arc_crossing(a0: NDArray, a1: NDArray, b0: NDArray, b1: NDArray) -> NDArray | None:
     """The point where two geodesic arcs (unit vectors) cross strictly inside both, or None."""
-    na, nb = np.cross(a0, a1), np.cross(b0, b1)
-    axis = np.cross(na, nb)
-    norm = np.linalg.norm(axis)
+    na, nb = _cross(a0, a1), _cross(b0, b1)
+    axis = _cross(na, nb)
+    norm = math.sqrt(_dot(axis, axis))
     if norm < 1e-12:
         return None  # same great circle: overlapping lines are not split
-    axis /= norm
     margin = math.radians(CROSSING_MARGIN)
-    for x in (axis, -axis):
-        inside_a = np.dot(np.cross(a0, x), na) > margin * np.linalg.norm(na) and np.dot(np.cross(x, a1), na) > margin * np.linalg.norm(na)
-        inside_b = np.dot(np.cross(b0, x), nb) > margin * np.linalg.norm(nb) and np.dot(np.cross(x, b1), nb) > margin * np.linalg.norm(nb)
+    limit_a, limit_b = margin * math.sqrt(_dot(na, na)), margin * math.sqrt(_dot(nb, nb))
+    for sign in (1.0, -1.0):
+        x = np.array(axis) * (sign / norm)
+        inside_a = _dot(_cross(a0, x), na) > limit_a and _dot(_cross(x, a1), na) > limit_a
+        inside_b = _dot(_cross(b0, x), nb) > limit_b and _dot(_cross(x, b1), nb) > limit_b
         if inside_a and inside_b:
             return x
     return None

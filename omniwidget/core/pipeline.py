@@ -350,7 +350,7 @@ def warp(
     from . import _kernels
     from .bbw import bbw, normalize_rows
     from .blend import blended_inverse, mesh_pixel_weights
-    from .locate import interpolate, locate_faces, locate_grid
+    from .locate import interpolate, locate_grid
     from .mesh import adaptive_mesh
     from .sampled import coarse_step, sampled_coordinates
 
@@ -372,9 +372,7 @@ def warp(
                 inverses, mesh.vertices, mesh.faces, weights, width, image.shape[1], step, constraints.points
             )
         else:
-            face, planes = locate_faces(mesh.vertices, mesh.faces, width)
-            lap("locate")
-            coordinates = _kernels.blend_coordinates(face, planes, mesh.faces, weights, inverses, image.shape[1])
+            coordinates, face, planes = _kernels.walk_blend(mesh.vertices, mesh.faces, weights, inverses, width, image.shape[1])
         inverse = _exact_inverse(inverses, mesh.vertices, mesh.faces, weights, width)  # located again when first asked
         lap("blend")
         out = remap(pad_panorama(image), coordinates, order)

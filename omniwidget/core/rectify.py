@@ -25,6 +25,7 @@ keep-in-place term), factored once and solved for both.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -255,7 +256,7 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
     asking = np.flatnonzero(span_all > 0)
     found = tree.query_ball_point(plane[asking], span_all[asking] / 4)
     i = np.repeat(asking, [len(f) for f in found])
-    j = np.fromiter((x for f in found for x in f), dtype=np.int64, count=len(i))
+    j = np.fromiter(itertools.chain.from_iterable(found), dtype=np.int64, count=len(i))
     keep = (owner_all[i] != owner_all[j]) & (free_all[i] | free_all[j])
     i, j = i[keep], j[keep]
     if len(i):

@@ -32,7 +32,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import _kernels, coords
-from .locate import locate_faces
 from .moebius import Moebius
 from .warping import PAD
 
@@ -127,13 +126,12 @@ def sampled_coordinates(
     face : ndarray of int32, shape (h, w)
         The samples' faces (``w = width / step``).
     planes : ndarray of float64, shape (m, 3, 3)
-        The faces' edge planes (:func:`~omniwidget.core.locate.locate_faces`).
+        The faces' edge planes (as :func:`~omniwidget.core.locate.locate_faces` gives them).
     """
     if step < 2 or width % (2 * step):
         raise ValueError(f"step must be at least 2 and divide the grid evenly: width {width}, step {step}")
     coarse_width = width // step
-    face, planes = locate_faces(vertices, faces, coarse_width)
-    samples = _kernels.blend_coordinates(face, planes, faces, weights, inverses, src_width)
+    samples, face, planes = _kernels.walk_blend(vertices, faces, weights, inverses, coarse_width, src_width)
     per_degree = src_width / 360.0
     lon_c, lat_c = coords.grid_lonlat(coarse_width)
     shift = np.empty_like(samples)  # displacement from where each sample is shown, source pixels
