@@ -276,6 +276,26 @@ def test_multilevel_and_single_level_agree():
     np.testing.assert_array_equal(w1, w3)
 
 
+def test_a_start_that_is_already_the_solution_is_taken_without_a_solve():
+    v, f = hull_sphere(1500, seed=5)
+    b, bc = point_layout(v, 8, seed=3)
+    first = bbw(v, f, b, bc)
+    # handle 0's point moves to another vertex: handles whose weights are 0 around both stay as they were
+    moved = b.copy()
+    near = np.argsort(-(v @ v[b[0]]))  # b[0] itself first
+    moved[0] = next(int(i) for i in near if i not in b)
+    cold = bbw(v, f, moved, bc)
+    warm, info = bbw_module._bbw(v, f, moved, bc, start=first)
+    assert np.abs(warm - cold).max() < 1e-9
+    factorizations = info["levels"][-1]["factorizations"]
+    untouched = [j for j in range(bc.shape[1]) if first[near[:60], j].max() == 0]  # no weight near the move
+    assert untouched and all(factorizations[j] == 0 for j in untouched), (untouched, factorizations)
+    assert factorizations[0] > 0  # the moved handle is solved
+    # a start that is not a solution is never taken as one
+    _, info = bbw_module._bbw(v, f, b, bc, start=np.clip(first + 1e-6, 0, 1))
+    assert all(n > 0 for n in info["levels"][-1]["factorizations"])
+
+
 def test_bbw_on_a_mesh_that_is_not_a_sphere():
     # a flat grid: no coarse levels, the same solver from the unconstrained solution
     n = 15

@@ -49,6 +49,9 @@ LOCAL_RINGS = 2
 MAX_BORDER = 48
 #: A bordered solve whose relative residual exceeds this is redone by a fresh factorization.
 BORDER_RESIDUAL = 1e-10
+#: A start whose free weights' scaled gradient is at most this already is the minimiser (the
+#: handle's problem did not change where its weights are free): it is taken without a solve.
+START_RESIDUAL = 1e-12
 
 
 # --- validation ----------------------------------------------------------------------
@@ -471,6 +474,20 @@ class _HandleResult:
     factorizations: int
 
 
+def _already_solved(prob: _Problem, j: int, x: FloatArray, tol: float) -> bool:
+    """Whether ``x`` (in ``[0, 1]``) satisfies handle ``j``'s KKT conditions without a solve.
+
+    The free weights' gradient ``(Q x - r)_i / Q_ii`` must vanish to :data:`START_RESIDUAL`
+    (rounding: a start that is the last solution of a problem that did not change around
+    the handle's free weights), and the active bounds' multipliers must have the right sign
+    to ``tol``, as :func:`_update` asks.
+    """
+    mu = (prob.q @ x - prob.rhs[:, j]) / prob.diag
+    lower, upper = x <= 0.0, x >= 1.0
+    free = ~(lower | upper)
+    return bool(np.all(np.abs(mu[free]) <= START_RESIDUAL) and np.all(mu[lower] >= -tol) and np.all(mu[upper] <= tol))
+
+
 def _solve_handle(prob: _Problem, j: int, lower: BoolArray, upper: BoolArray, tol: float, max_steps: int) -> _HandleResult:
     """The active-set iterations for handle ``j``, from the initial active sets ``lower``, ``upper``.
 
@@ -665,8 +682,10 @@ def bbw(
     start : array_like, shape (n, k), optional
         A guess of the weights (for example the last solution of a slightly different
         problem, interpolated onto this mesh): the active sets start where it is 0 or 1,
-        and the coarser levels are skipped. The result is the same minimiser; only the
-        number of steps to it changes.
+        and the coarser levels are skipped. A handle whose start already satisfies its
+        optimality conditions (to rounding: its problem did not change where its weights
+        are free) is taken as it is, without a solve. The result is the same minimiser;
+        only the number of steps to it changes.
 
     Returns
     -------
@@ -778,6 +797,10 @@ def _bbw(
             steps = max_iter if depth == 0 else COARSE_STEPS
 
             def run(j: int, guess: FloatArray = guess, prob: _Problem = prob, steps: int = steps) -> _HandleResult:
+                if start is not None:  # a drag leaves the handles far from what moved as they were
+                    x = np.clip(guess[:, j], 0.0, 1.0)
+                    if _already_solved(prob, j, x, tol):
+                        return _HandleResult(x, True, 0, 0)
                 return _solve_handle(prob, j, guess[:, j] <= tol, guess[:, j] >= 1.0 - tol, tol, steps)
 
             if workers > 1:

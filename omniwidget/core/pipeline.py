@@ -307,7 +307,7 @@ def warp(
     exact : bool
         Evaluate the blend at every output pixel. By default, with the compiled kernels and
         an output at least :data:`omniwidget.core.sampled.SAMPLE_FROM` wide, it is evaluated
-        on a coarser grid and interpolated where that is within a tenth of a pixel, and
+        on a coarser grid and interpolated where that is within a quarter of a pixel, and
         exactly near the handles (:mod:`omniwidget.core.sampled`). ``Result.inverse_map()``
         and so every quality figure use the exact map either way.
     previous : Result, optional

@@ -44,7 +44,7 @@ SAMPLE_FROM = 2048
 #: Samples this close to a handle's prescribed point (in samples) are not interpolated from.
 BAND = 1
 #: Largest estimated interpolation error (source pixels) left to the interpolation.
-TOLERANCE = 0.1
+TOLERANCE = 0.25
 #: Sources within this many samples of a pole, and displacement jumps above this many degrees, are not interpolated.
 _POLE_SAMPLES = 3.0
 _JUMP = 20.0
