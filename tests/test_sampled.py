@@ -132,3 +132,21 @@ def test_face_neighbours_are_the_faces_across_each_edge(room):
 def test_coarse_step():
     assert coarse_step(1024) == 1 and coarse_step(2048) == 4 and coarse_step(11968) == 4 and coarse_step(2052) == 3
     assert coarse_step(2054) == 1
+
+
+def test_the_tolerance_scale_is_the_maps_smaller_singular_value():
+    from omniwidget.core.sampled import _scale
+
+    step, rows, cols = 4, 16, 32
+    r, c = np.meshgrid(np.arange(rows) * step, np.arange(cols) * step, indexing="ij")
+    identity = np.zeros((rows, cols, 2), np.float32)
+    np.testing.assert_allclose(_scale(identity, step), 1.0)
+    # a conformal shrink by 0.3 and a turn of 30 degrees, away from the wrapped columns
+    a, s = np.radians(30.0), 0.3
+    x = s * (np.cos(a) * c - np.sin(a) * r)
+    y = s * (np.sin(a) * c + np.cos(a) * r)
+    shrink = np.stack([x - c, y - r], axis=-1).astype(np.float32)
+    np.testing.assert_allclose(_scale(shrink, step)[1:-1, 1:-1], s, rtol=1e-5)
+    # squeezed along one axis to a tenth: the smaller singular value
+    squeeze = np.stack([np.zeros_like(x), -0.9 * r], axis=-1).astype(np.float32)
+    np.testing.assert_allclose(_scale(squeeze, step)[1:-1, 1:-1], 0.1, rtol=1e-5)

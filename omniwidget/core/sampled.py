@@ -6,17 +6,19 @@ exactly (:mod:`omniwidget.core._kernels`) on an equirectangular grid ``step`` ti
 coarser, whose samples sit at the centres of ``step x step`` blocks of output pixels, as
 the *displacement* of each sample from where it is shown (the longitude difference wrapped
 to ±180°, the latitude difference, in source pixels), and interpolates that bilinearly
-(:func:`cv2.resize`, columns wrapped at the seam). A displacement is the right thing to
+(a compiled kernel, columns wrapped at the seam). A displacement is the right thing to
 interpolate: it is 0 for the identity and changes linearly along rows near the poles.
 
-The output pixels around these samples are evaluated exactly instead, each located in
-its mesh face from the faces of the samples around it:
+The output pixels around these samples are evaluated exactly instead, each walked to its
+mesh face from its neighbour's (:func:`omniwidget.core._kernels.blend_blocks`):
 
 - samples within ``band`` of a handle's prescribed point (every line, cage edge and point
   at its output position), where weights change within a few pixels: lines come out as
   straight and cages as still as the exact map makes them;
 - samples where the interpolation's error, estimated from second differences (a quarter
-  of one bounds the error of a kink or a curve between samples), exceeds ``tolerance``;
+  of one bounds the error of a kink or a curve between samples), exceeds ``tolerance``
+  times the map's local scale (:func:`_scale`: where the map shrinks the image, as near
+  an output pole, a smaller error would already turn neighbouring pixels over);
 - samples whose displacement in longitude jumps from a neighbour's (it wraps at ±180°, and
   turns about a pole of the source), or whose source lies near a pole;
 - the first and last rows of samples, whose blocks reach towards the output poles.
@@ -79,6 +81,28 @@ def _grow(mask: NDArray[np.bool_], by: int) -> NDArray[np.bool_]:
         return mask
     wrapped = np.concatenate([mask[:, -by:], mask, mask[:, :by]], axis=1).astype(np.uint8)
     return cv2.dilate(wrapped, np.ones((2 * by + 1, 2 * by + 1), np.uint8))[:, by:-by].astype(bool)
+
+
+def _scale(shift: NDArray[np.float32], step: int) -> NDArray[np.float32]:
+    """The map's smaller singular value at each sample, in source pixels per output pixel, at most 1.
+
+    From central differences of the samples (the displacement plus the identity's unit
+    step along rows and columns): the Jacobian's determinant over its longer column, exact
+    for a conformal map (as Möbius maps and their blends nearly are), and near 0 along a fold
+    (where the determinant changes sign).
+    Where neighbouring output pixels come from sources closer than a pixel (a map that
+    shrinks the image there, as near an output pole, or nearly folds it) an error of a
+    fraction of a pixel could turn it over, so the tolerance shrinks with this scale.
+    """
+    along = (np.roll(shift, -1, axis=1) - np.roll(shift, 1, axis=1)) / (2 * step)
+    along[..., 0] += 1.0
+    down = np.zeros_like(shift)
+    down[1:-1] = (shift[2:] - shift[:-2]) / (2 * step)
+    down[0], down[-1] = down[1], down[-2]
+    down[..., 1] += 1.0
+    det = np.abs(along[..., 0] * down[..., 1] - along[..., 1] * down[..., 0])
+    longer = np.sqrt(np.maximum(np.sum(along**2, axis=-1), np.sum(down**2, axis=-1)))
+    return np.minimum(det / np.maximum(longer, 1e-12), 1.0)
 
 
 def sampled_coordinates(
@@ -146,10 +170,10 @@ def sampled_coordinates(
     bad[:-1] |= jump
     jump = np.abs(np.roll(shift[..., 0], -1, axis=1) - shift[..., 0]) > _JUMP * per_degree
     bad |= jump | np.roll(jump, 1, axis=1)
-    limit = 4 * tolerance
-    down = np.abs(shift[2:] - 2 * shift[1:-1] + shift[:-2]) > limit
+    limit = 4 * tolerance * _scale(shift, step)
+    down = np.abs(shift[2:] - 2 * shift[1:-1] + shift[:-2]) > limit[1:-1, :, None]
     bad[1:-1] |= down[..., 0] | down[..., 1]
-    across = np.abs(np.roll(shift, -1, axis=1) - 2 * shift + np.roll(shift, 1, axis=1)) > limit
+    across = np.abs(np.roll(shift, -1, axis=1) - 2 * shift + np.roll(shift, 1, axis=1)) > limit[..., None]
     bad |= across[..., 0] | across[..., 1]
     handles = np.zeros_like(bad)
     col, row = np.floor(coords.lonlat_to_px(coords.xyz_to_lonlat(near), coarse_width) + 0.5).astype(np.int64).T
