@@ -106,8 +106,13 @@ def test_duplicate_ids_and_non_json_are_refused(tmp_path):
     doc["handles"][1]["id"] = "p"
     with pytest.raises(HandlesError, match=r"handles\[1\].id: 'p' is already the id of handles\[0\]"):
         Handles.from_dict(doc)
-    with pytest.raises(HandlesError, match="NaN is not a number JSON allows"):
+    # NaN and Infinity are not JSON, but Python writes them: refused by the field that holds them
+    with pytest.raises(HandlesError, match=r"handles\[0\].position\[0\] \(longitude\): expected a finite number, got nan"):
         Handles.from_json('{"handles": [{"kind": "point", "position": [NaN, 0]}]}')
+    with pytest.raises(HandlesError, match=r"handles\[1\].scale: expected a finite number, got -inf"):
+        Handles.from_json(
+            '{"handles": [{"kind": "line", "start": [0, 0], "end": [9, 0]}, {"kind": "point", "position": [0, 0], "scale": -Infinity}]}'
+        )
     with pytest.raises(HandlesError, match="not valid JSON"):
         Handles.from_json("{handles: ")
     bad = tmp_path / "bad.json"

@@ -585,12 +585,18 @@ def _hull(u: FloatArray) -> IntArray | None:
         return None
     a, b, c = (u[faces[:, i]] for i in range(3))
     normal = np.cross(b - a, c - a)
-    flip = np.einsum("ij,ij->i", normal, a + b + c) < 0
+    side = np.einsum("ij,ij->i", normal, a + b + c)
+    flip = side < 0
     faces[flip] = faces[flip][:, [0, 2, 1]]
     used = np.zeros(u.shape[0], dtype=bool)
     used[faces.ravel()] = True
     longest = np.max([np.sum((x - y) ** 2, axis=1) for x, y in ((a, b), (b, c), (c, a))], axis=0)
-    if not used.all() or np.any(np.linalg.norm(normal, axis=1) <= 1e3 * DEGENERATE_AREA * longest):
+    size = np.linalg.norm(normal, axis=1)
+    if not used.all() or np.any(size <= 1e3 * DEGENERATE_AREA * longest):
+        return None
+    # a face whose plane passes through the origin: the points do not surround it (they lie in
+    # a hemisphere), and the hull is no mesh of the sphere
+    if np.any(np.abs(side) <= 1e-9 * size):
         return None
     return faces
 

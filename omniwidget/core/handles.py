@@ -277,9 +277,7 @@ class Handles:
     def from_json(cls, text: str | bytes) -> Handles:
         """Validate and build a document from JSON text."""
         try:
-            data = json.loads(text, parse_constant=_reject_constant)
-        except HandlesError:
-            raise
+            data = json.loads(text, parse_constant=_constant)  # a NaN is then refused by the field that holds it
         except (ValueError, UnicodeDecodeError) as exc:
             raise HandlesError("", f"not valid JSON: {exc}") from None
         return cls.from_dict(data)
@@ -315,8 +313,9 @@ def save_handles(handles: Handles, path: str | os.PathLike[str]) -> None:
 # --- parsing and validation -------------------------------------------------------------
 
 
-def _reject_constant(name: str) -> None:
-    raise HandlesError("", f"{name} is not a number JSON allows; positions and values must be finite")
+def _constant(name: str) -> float:
+    """``NaN``, ``Infinity`` and ``-Infinity`` (not JSON, but Python writes them) as floats, refused where they are used."""
+    return float(name)
 
 
 _HANDLE_FIELDS = {
@@ -369,6 +368,12 @@ def _distinct(points: Sequence[LonLat], where: str, closed: bool = False) -> Non
                 raise HandlesError(where, f"positions {i} and {j} coincide ({_describe(list(points[i]))})")
 
 
+def _given(data: Mapping[str, Any], key: str, default: Any) -> Any:
+    """An optional field's value; ``null`` means not given, as leaving it out does."""
+    value = data.get(key)
+    return default if value is None else value
+
+
 def _parse_handle(data: Any, index: int) -> Handle:
     where = f"handles[{index}]"
     if not isinstance(data, Mapping):
@@ -391,12 +396,12 @@ def _parse_handle(data: Any, index: int) -> Handle:
         return PointHandle(
             position=_lonlat(data["position"], f"{where}.position"),
             target=None if target is None else _lonlat(target, f"{where}.target"),
-            rotation=_number(data.get("rotation", 0.0), f"{where}.rotation", *ROTATION_RANGE),
-            scale=_number(data.get("scale", 1.0), f"{where}.scale", *SCALE_RANGE),
+            rotation=_number(_given(data, "rotation", 0.0), f"{where}.rotation", *ROTATION_RANGE),
+            scale=_number(_given(data, "scale", 1.0), f"{where}.scale", *SCALE_RANGE),
             id=hid,
         )
     if kind == "line":
-        rectify = data.get("rectify", "targets" not in data)
+        rectify = _given(data, "rectify", data.get("targets") is None)
         if not isinstance(rectify, bool):
             raise HandlesError(f"{where}.rectify", f"expected true or false, got {_describe(rectify)}")
         targets = data.get("targets")

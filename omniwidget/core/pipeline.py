@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import coords
 from .constraints import SAMPLES, Constraints, Control, build_constraints
-from .handles import Handles
+from .handles import CageHandle, Handles, LineHandle, PointHandle
 from .moebius import Moebius
 from .quality import FoldOver, fold_over
 from .warping import (
@@ -194,6 +194,32 @@ def _merge_duplicates(
     return unique, merged, problems
 
 
+def _inside_fixed_cages(handles: Handles) -> list[str]:
+    """Warnings for handles that move something inside a cage that holds its inside still (the paper's Fig. 15)."""
+    from .quality import inside_polygon
+
+    found = []
+    for i, cage in enumerate(handles.handles):
+        if not isinstance(cage, CageHandle) or cage.finals != cage.vertices:
+            continue
+        for j, other in enumerate(handles.handles):
+            if j == i:
+                continue
+            if isinstance(other, PointHandle):
+                moves = other.final != other.position or other.scale != 1.0 or other.rotation != 0.0
+                where = [other.position, other.final]
+            elif isinstance(other, LineHandle):
+                moves, where = True, [other.start, other.end]
+            else:
+                moves, where = other.finals != other.vertices, [*other.vertices, *other.finals]
+            if moves and inside_polygon(np.asarray(where, np.float64), cage.vertices).any():
+                found.append(
+                    f"handles[{j}] ({other.kind}) moves what handles[{i}] (cage) holds still: the cage's inside cannot stay "
+                    "where it is; move the handle out of the cage, or give the cage targets"
+                )
+    return found
+
+
 def _crossing_lines(constraints: Constraints) -> list[str]:
     """Warnings for lines whose output images cross (their maps disagree: the blend folds between them)."""
     from .rectify import crossing_pairs
@@ -354,7 +380,7 @@ def warp(
     from .mesh import adaptive_mesh
     from .sampled import coarse_step, sampled_coordinates
 
-    problems_before = _crossing_lines(constraints)
+    problems_before = _inside_fixed_cages(handles) + _crossing_lines(constraints)
     mesh = adaptive_mesh(constraints.points)
     lap("mesh")
     b, bc, problems = _merge_duplicates(mesh.sample_index, constraints.values, constraints.controls)

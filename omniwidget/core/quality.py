@@ -36,6 +36,7 @@ __all__ = [
     "cage_motion",
     "conformal_distortion",
     "coverage",
+    "inside_polygon",
     "displacement",
     "fold_over",
     "forward_points",
@@ -431,13 +432,24 @@ def coverage(inverse_map: ArrayLike, cells: int = 360) -> float:
     return float(np.sum(area * hit))
 
 
-def _inside_polygon(lonlat: NDArray[np.float64], vertices: NDArray[np.float64]) -> NDArray[np.bool_]:
+def inside_polygon(lonlat: ArrayLike, vertices: ArrayLike) -> NDArray[np.bool_]:
     """Whether positions lie inside a spherical polygon with great-circle edges (even-odd rule).
 
     In the gnomonic projection about the vertices' centre, great circles are straight lines,
     so the planar test is exact for polygons smaller than a hemisphere.
+
+    Parameters
+    ----------
+    lonlat : array_like, shape (..., 2)
+        Positions ``[lon, lat]`` in degrees.
+    vertices : array_like, shape (n, 2)
+        The polygon's corners ``[lon, lat]`` in degrees, in order (either way round), n >= 3.
+
+    Returns
+    -------
+    ndarray of bool, shape (...)
     """
-    corners = coords.lonlat_to_xyz(vertices)
+    corners = coords.lonlat_to_xyz(np.asarray(vertices, np.float64))
     centre = corners.sum(axis=0)
     centre /= np.linalg.norm(centre)
     east, north = coords.local_frame(coords.xyz_to_lonlat(centre))
@@ -446,7 +458,7 @@ def _inside_polygon(lonlat: NDArray[np.float64], vertices: NDArray[np.float64]) 
         depth = xyz @ centre
         return xyz @ east / depth, xyz @ north / depth, depth
 
-    px, py, depth = project(coords.lonlat_to_xyz(lonlat))
+    px, py, depth = project(coords.lonlat_to_xyz(np.asarray(lonlat, np.float64)))
     vx, vy, _ = project(corners)
     inside = np.zeros(px.shape, dtype=bool)
     for i in range(len(vx)):
@@ -484,7 +496,7 @@ def cage_motion(inverse_map: ArrayLike, vertices: ArrayLike, width: int | None =
         raise ValueError(f"expected cage vertices of shape (n >= 3, 2), got {corners.shape}")
     lon, lat = coords.grid_lonlat(m.shape[1])
     grid = np.stack(np.meshgrid(lon, lat), axis=-1)
-    inside = _inside_polygon(grid, corners)
+    inside = inside_polygon(grid, corners)
     if not inside.any():
         raise ValueError("no output pixel lies inside the cage")
     moved = coords.angular_distance(m[inside], grid[inside])

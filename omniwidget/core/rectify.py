@@ -251,7 +251,9 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
     rows = _Rows()
     # every pair of samples of different handles closer than S_k / 4 (eq. 8), one of them solved for
     span_all = np.asarray(spans)[owner_all]
-    plane = np.stack([np.mod(inputs_all[:, 0], 360.0), inputs_all[:, 1] + 90.0], axis=1)
+    east = np.mod(inputs_all[:, 0], 360.0)
+    east[east >= 360.0] = 0.0  # a tiny negative longitude rounds to 360, outside the periodic box
+    plane = np.stack([east, inputs_all[:, 1] + 90.0], axis=1)
     tree = cKDTree(plane, boxsize=[360.0, 1e6])  # longitude periodic: the seam is nothing special
     asking = np.flatnonzero(span_all > 0)
     found = tree.query_ball_point(plane[asking], span_all[asking] / 4)
