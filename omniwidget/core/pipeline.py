@@ -185,12 +185,18 @@ def _merge_duplicates(
     b, values = b[order], values[order]
     unique, start = np.unique(b, return_index=True)
     merged = np.add.reduceat(values, start, axis=0) / np.diff(np.append(start, len(b)))[:, None]
-    problems = []
+    clashes: dict[tuple[str, ...], list[int]] = {}  # the controls that share points, and the points
     for u, s, e in zip(unique, start, np.append(start[1:], len(b)), strict=True):
         rows = values[s:e]
         if e - s > 1 and np.abs(rows - rows[0]).max() > 1e-9:
-            names = sorted({controls[c].label for c in np.flatnonzero(np.abs(rows).sum(axis=0) > 0)})
-            problems.append(f"constraints of {', '.join(names)} fall on the same point (mesh vertex {u}); their weights were averaged")
+            names = tuple(sorted({controls[c].label for c in np.flatnonzero(np.abs(rows).sum(axis=0) > 0)}))
+            clashes.setdefault(names, []).append(int(u))
+    problems = [
+        f"constraints of {', '.join(names)} fall on the same point"
+        + (f" (mesh vertex {at[0]})" if len(at) == 1 else f"s ({len(at)} mesh vertices, {at[0]} first)")
+        + "; their weights were averaged"
+        for names, at in clashes.items()
+    ]
     return unique, merged, problems
 
 
