@@ -393,6 +393,15 @@ def test_a_cage_across_the_seam_and_one_around_a_pole_hold_still(room):
     assert seam_step <= np.percentile(steps, 99), (seam_step, np.percentile(steps, 99))
 
 
+@pytest.mark.parametrize("pole", [90.0, -89.995])
+def test_a_cage_with_a_vertex_at_a_pole_holds_still(room, pole):
+    cage = [[0.0, pole], [-30.0, math.copysign(70.0, pole)], [30.0, math.copysign(70.0, pole)]]
+    result, _ = _warp(room, _doc({"kind": "cage", "vertices": cage}, {"kind": "point", "position": [100.0, 0.0], "target": [104.0, 3.0]}))
+    from omniwidget.core.quality import cage_motion
+
+    assert cage_motion(result.inverse_map(np.float64), cage) < 0.5
+
+
 def test_clockwise_and_counter_clockwise_cages_are_the_same_cage(room):
     ccw = [[-40.0, -10.0], [-10.0, -10.0], [-10.0, 15.0], [-40.0, 15.0]]
     moved = [[x + 3.0, y + 2.0] for x, y in ccw]
