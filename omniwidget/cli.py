@@ -64,6 +64,12 @@ def _parser() -> argparse.ArgumentParser:
     warp.add_argument("--map", type=Path, help="also save the inverse map: float32 (H, W, 2) input [lon, lat] per output pixel, .npy")
     warp.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
     warp.add_argument("--workers", type=int, help="threads for many frames (default: CPUs + 1)")
+    warp.add_argument(
+        "--fit",
+        choices=("pad", "stretch"),
+        help="make a non-2:1 input 2:1 first: pad adds black (transparent) rows above and below a 360°-wide panorama "
+        "cropped in latitude, stretch resizes it (default: refuse it)",
+    )
 
     demo = sub.add_parser(
         "demo", help="before/after of the bundled panorama", description="Rectify lines of the bundled panorama and write a before/after."
@@ -96,9 +102,26 @@ def _warp_quietly(*args: Any, **kwargs: Any) -> Result:
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".npy")
 
 
+def _quiet_opencv() -> None:
+    """Silence OpenCV's own log lines (a decoder's complaints): the one-line error says it, naming the file."""
+    import cv2
+
+    logging = getattr(getattr(cv2, "utils", None), "logging", None)
+    if logging is not None:
+        logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
+    except OSError:
+        return False
+
+
 def _cmd_warp(args: argparse.Namespace) -> None:
     from .core.errors import ImageError
 
+    _quiet_opencv()
     if args.map is not None:
         _check_output(args.map, (".npy",), "map file")
     if args.width is not None and (args.width < 2 or args.width % 2):
@@ -114,18 +137,22 @@ def _cmd_warp(args: argparse.Namespace) -> None:
 def _warp_one(args: argparse.Namespace) -> None:
     from .core.errors import ImageError
     from .core.handles import load_handles
-    from .core.io import check_panorama, read_image, write_image
+    from .core.io import _encode, _write_bytes, check_writable, read_panorama
 
     (source,) = args.input
-    if args.output.resolve() == source.resolve():
+    if _same_file(args.output, source):
         raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
     _check_output(args.output, _IMAGE_SUFFIXES, "output image")
     handles = load_handles(args.handles)
-    image = check_panorama(read_image(source), str(source))
+    image = read_panorama(source, args.fit)
+    check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
     result = _warp_quietly(image, handles, width=args.width, order=args.order)
+    # both encoded before either is written: a failure leaves no output at all
+    outputs = [(args.output, _encode(args.output, result.image))]
     if args.map is not None:
-        write_image(args.map, result.inverse_map())  # .npy: the float32 array as it is
-    write_image(args.output, result.image)
+        outputs.append((args.map, _encode(args.map, result.inverse_map())))  # .npy: the float32 array as it is
+    for path, data in outputs:
+        _write_bytes(path, data)
 
 
 def _frame_outputs(args: argparse.Namespace) -> list[Path]:
@@ -150,7 +177,7 @@ def _frame_outputs(args: argparse.Namespace) -> list[Path]:
         if unwritable is not None:
             raise ImageError(f"{unwritable}: outputs keep their input's name, and the output must end in {', '.join(_IMAGE_SUFFIXES)}")
     sources = {p.resolve() for p in inputs}
-    clash = next((o for o in outputs if o.resolve() in sources), None)
+    clash = next((o for o in outputs if o.resolve() in sources or any(_same_file(o, i) for i in inputs)), None)
     if clash is not None:
         raise ImageError(f"{clash}: the output would overwrite an input; choose another folder")
     return outputs
@@ -167,12 +194,13 @@ def _warp_frames(args: argparse.Namespace) -> None:
     from .core.errors import ImageError
     from .core.frames import load_map, map_coordinates, warp_frames
     from .core.handles import load_handles
-    from .core.io import check_panorama, read_image, write_image
+    from .core.io import _check_format, read_panorama, write_image
 
     outputs = _frame_outputs(args)
     handles = load_handles(args.handles) if args.handles is not None else None
     saved = load_map(args.apply_map) if args.apply_map is not None else None
-    first = check_panorama(read_image(args.input[0]), str(args.input[0]))
+    first = read_panorama(args.input[0], args.fit)
+    _check_format(outputs[0], first[:0])  # the folder may not exist yet
     start = time.perf_counter()
     if saved is not None:
         if args.width is not None and args.width != saved.shape[1]:
@@ -187,7 +215,9 @@ def _warp_frames(args: argparse.Namespace) -> None:
     if len(outputs) > 1:
         args.output.mkdir(exist_ok=True)
     progress = _progress_bar if len(outputs) > 1 and sys.stderr.isatty() else None
-    report = warp_frames(args.input, outputs, coordinates, first.shape[:2], order=args.order, workers=args.workers, progress=progress)
+    report = warp_frames(
+        args.input, outputs, coordinates, first.shape[:2], order=args.order, workers=args.workers, progress=progress, fit=args.fit
+    )
     h, w = coordinates.shape[:2]
     print(
         f"warped {len(report.written)} frame(s) to {w} x {h} in {report.seconds:.2f} s: {report.fps:.1f} frames per second "
@@ -239,6 +269,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     except _FramesFailed as exc:
         print(f"omniwidget {args.command}: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except MemoryError:
+        print(f"omniwidget {args.command}: error: not enough memory for this image (try a smaller --width)", file=sys.stderr)
         return EXIT_BAD_INPUT
     return 0
 

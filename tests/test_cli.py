@@ -119,6 +119,21 @@ def test_bad_inputs_give_one_line_and_exit_2(files, capsys):
         assert message in _run_bad(files, capsys, argv), message
 
 
+def test_fit_is_refused_unless_pad_or_stretch_and_the_input_stays_as_it_was(files, capsys):
+    before = _digest(files / "in.png")
+    with pytest.raises(SystemExit) as info:
+        main(["warp", str(files / "in.png"), "-H", str(files / "h.json"), "-o", str(files / "o.png"), "--fit", "crop"])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and "argument --fit: invalid choice: 'crop'" in err and err.count("\n") == 1
+    # a panorama that is 2:1 already is warped as it is, whatever --fit says
+    plain = files / "plain.png"
+    assert main(["warp", str(files / "in.png"), "-H", str(files / "h.json"), "-o", str(plain)]) == 0
+    for fit in ("pad", "stretch"):
+        assert main(["warp", str(files / "in.png"), "-H", str(files / "h.json"), "-o", str(files / f"{fit}.png"), "--fit", fit]) == 0
+        assert (files / f"{fit}.png").read_bytes() == plain.read_bytes()
+    assert _digest(files / "in.png") == before
+
+
 def test_several_handles_are_blended(files, capsys):
     doc = {
         "handles": [

@@ -15,6 +15,10 @@ from omniwidget.core.io import atomic_write_bytes, read_image, write_image
         (".tif", np.float32, 3),
         (".npy", np.float64, 4),
         (".jpg", np.uint8, None),
+        (".tif", np.float64, 3),  # OpenCV's colour conversion takes no float64: the channels are swapped by numpy
+        (".tif", np.float64, 4),
+        (".png", np.uint16, 4),
+        (".tif", np.uint16, 1),
     ],
 )
 def test_images_round_trip_in_their_depth_and_channel_order(tmp_path, rng, suffix, dtype, channels):
@@ -26,6 +30,8 @@ def test_images_round_trip_in_their_depth_and_channel_order(tmp_path, rng, suffi
     path = tmp_path / f"im{suffix}"
     write_image(path, image)
     back = np.load(path) if suffix == ".npy" else read_image(path)
+    if channels == 1:
+        image = image[..., 0]  # image files hold one channel as gray (H, W)
     assert back.dtype == image.dtype and back.shape == image.shape
     if suffix != ".jpg":
         np.testing.assert_array_equal(back, image)  # RGB stays RGB (OpenCV's BGR never leaks out)
@@ -63,3 +69,24 @@ def test_unreadable_files_name_the_problem(tmp_path):
         read_image(tmp_path / "junk.jpg")
     with pytest.raises(ImageError, match="missing.png: cannot read"):
         read_image(tmp_path / "missing.png")
+
+
+def test_a_failed_write_says_where_and_leaves_the_old_file(tmp_path, monkeypatch):
+    path = tmp_path / "out.png"
+    path.write_bytes(b"old")
+
+    def failing_replace(src, dst):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("omniwidget.core.io.os.replace", failing_replace)
+    with pytest.raises(ImageError) as info:
+        write_image(path, np.zeros((4, 8, 3), np.uint8))
+    assert str(info.value) == f"{path}: cannot write the file (No space left on device)"  # no temporary file's name in it
+    assert path.read_bytes() == b"old" and [p.name for p in tmp_path.iterdir()] == ["out.png"]
+
+
+def test_alpha_is_refused_by_jpeg_rather_than_dropped(tmp_path):
+    with pytest.raises(ImageError, match=r"a\.jpg: JPEG has no alpha channel"):
+        write_image(tmp_path / "a.jpg", np.zeros((4, 8, 4), np.uint8))
+    write_image(tmp_path / "a.jpg", np.zeros((4, 8, 3), np.uint8))
+    assert read_image(tmp_path / "a.jpg").shape == (4, 8, 3)

@@ -3,7 +3,7 @@
 from .coords import lonlat_to_px, lonlat_to_xyz, px_to_lonlat, xyz_to_lonlat
 from .errors import HandlesError, ImageError, OmniwidgetError
 from .handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
-from .io import read_image, write_image
+from .io import read_image, read_panorama, to_equirectangular, write_image
 from .moebius import Moebius
 from .pipeline import BlendWarning, Result, warp
 from .warping import WarpResult, warp_moebius
@@ -26,7 +26,9 @@ __all__ = [
     "lonlat_to_xyz",
     "px_to_lonlat",
     "read_image",
+    "read_panorama",
     "save_handles",
+    "to_equirectangular",
     "warp",
     "warp_moebius",
     "write_image",

@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import coords
 from .errors import ImageError, OmniwidgetError
-from .io import check_panorama, read_image, write_image
+from .io import Fit, read_panorama, write_image
 from .warping import ORDERS, PAD, Order, pad_panorama, remap
 
 __all__ = ["FrameReport", "load_map", "map_coordinates", "warp_frames"]
@@ -128,6 +128,7 @@ def warp_frames(
     order: Order = "bilinear",
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    fit: Fit | None = None,
 ) -> FrameReport:
     """Warp many frames by one map: read, resample, write, a few frames at a time.
 
@@ -144,6 +145,9 @@ def warp_frames(
         Threads; default one per CPU plus one (reading and writing wait on the disk).
     progress : callable, optional
         ``progress(done, total)``, called from the calling thread after each frame.
+    fit : {"pad", "stretch"}, optional
+        Make each frame 2:1 first (:func:`~omniwidget.core.io.to_equirectangular`); by
+        default a frame that is not 2:1 fails.
 
     Returns
     -------
@@ -160,7 +164,7 @@ def warp_frames(
     def one(pair: tuple[Path, Path]) -> str | None:
         src, dst = pair
         try:
-            frame = check_panorama(read_image(src), str(src))
+            frame = read_panorama(src, fit)
             if frame.shape[:2] != tuple(src_shape):
                 raise ImageError(f"{src}: the frame is {frame.shape[1]} x {frame.shape[0]}, the map is for {src_shape[1]} x {src_shape[0]}")
             write_image(dst, remap(pad_panorama(frame), coordinates, order))

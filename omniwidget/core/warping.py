@@ -191,9 +191,15 @@ def remap_coordinates(fn: GridInverse, width: int, src_width: int, offset: float
 def pad_panorama(image: NDArray, pad: int = PAD) -> NDArray:
     """Pad a panorama by ``pad`` pixels: columns wrap at the seam, rows continue over the poles."""
     h, w = image.shape[:2]
-    if pad > h or w % 2:
+    if w % 2 or h < 1 or pad < 0:
         raise ImageError(f"cannot pad a {w} x {h} panorama by {pad} pixels")
     half = w // 2
+    if not 0 < pad < h:  # a tiny panorama: a meridian goes over a pole and on within the padding (or no padding)
+        r = np.arange(-pad, h + pad) % (2 * h)
+        over = r >= h  # rows seen past a pole: half a turn away
+        rows = image[np.where(over, 2 * h - 1 - r, r)]
+        rows[over] = np.roll(rows[over], half, axis=1)
+        return rows[:, np.arange(-pad, w + pad) % w]
     top = np.roll(image[pad - 1 :: -1], half, axis=1)  # row -1 is row 0 half a turn away, ...
     bottom = np.roll(image[h - 1 : h - pad - 1 : -1], half, axis=1)
     rows = np.concatenate([top, image, bottom], axis=0)
@@ -220,6 +226,8 @@ def remap(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bili
     if order not in ORDERS:
         raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
     interpolation = {"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR, "bicubic": cv2.INTER_CUBIC}[order]
+    if image.ndim == 3 and image.shape[2] == 2:  # OpenCV samples two channels on a coarser grid (1/32 pixel): one at a time
+        return np.dstack([remap(np.ascontiguousarray(image[..., k]), coordinates, order) for k in range(2)])
     out = cv2.remap(image, coordinates, None, interpolation, borderMode=cv2.BORDER_REPLICATE)
     if image.ndim == 3 and out.ndim == 2:  # OpenCV drops a single channel axis
         out = out[..., None]
