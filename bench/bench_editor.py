@@ -15,7 +15,10 @@ for a 12-handle scene at preview size: at most 1 s now"):
    waits until the preview (1024 x 512) is computed, encoded and set on the widget: median
    wall time, and the median of the warp's own stages. Beside it, in the same process, the
    full-size warp of the same handles (the reference: the preview should cost a fraction).
-2. With ``--browser``: the real-browser test, which drags a point of the same scene in
+2. The autosave's cost per edit: the same scene's document written whole (temporary file
+   and rename) after each edit, timed alone and as part of the assignment (which returns
+   before the preview is computed), with autosave on and off.
+3. With ``--browser``: the real-browser test, which drags a point of the same scene in
    JupyterLab three times and reads the time from ``pointerup`` to the new image drawn on
    the canvas (the front end's own ``performance.now()``), from
    ``test-artifacts/editor_latency.json``.
@@ -31,6 +34,7 @@ import os
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -49,7 +53,7 @@ from omniwidget.widget import Editor  # noqa: E402
 def kernel_side(repeat: int) -> None:
     image, scene = build_scene(SEED)
     scene = replace(scene, options=Options(rectify="all"))
-    editor = Editor(image, scene)
+    editor = Editor(image, scene, autosave=False)
     editor.wait()
     index = next(i for i, h in enumerate(scene.handles) if isinstance(h, PointHandle))
     walls, stages = [], []
@@ -77,6 +81,56 @@ def kernel_side(repeat: int) -> None:
     print(f"  preview / full: {statistics.median(walls) / statistics.median(full):.2f}")
 
 
+def autosave_cost(edits: int = 200) -> None:
+    """Median cost of the autosave per edit of the 12-handle scene, alone and in the assignment."""
+    image, scene = build_scene(SEED)
+    scene = replace(scene, options=Options(rectify="all"))
+    index = next(i for i, h in enumerate(scene.handles) if isinstance(h, PointHandle))
+
+    def edited(i: int):
+        items = list(scene.handles)
+        items[index] = replace(items[index], scale=1.0 + 0.001 * (i + 1))
+        return replace(scene, handles=tuple(items))
+
+    with tempfile.TemporaryDirectory() as folder:
+        figures = {}
+        for autosave in (False, Path(folder)):
+            editor = Editor(image, scene, autosave=autosave)
+            editor.wait()
+            docs = [edited(i) for i in range(edits)]
+            assign, alone = [], []
+            for doc in docs:
+                start = time.perf_counter()
+                editor.handles = doc  # returns once the edit is recorded (and autosaved); the preview computes meanwhile
+                assign.append(time.perf_counter() - start)
+            editor.wait()
+            if autosave:
+                for doc in docs:
+                    start = time.perf_counter()
+                    editor._autosave(doc)
+                    alone.append(time.perf_counter() - start)
+                size = editor.autosave_path.stat().st_size
+            previews = []
+            for doc in docs[: edits // 10]:
+                start = time.perf_counter()
+                editor.handles = replace(
+                    doc,
+                    handles=(
+                        *doc.handles[:index],
+                        replace(doc.handles[index], scale=2.0 - doc.handles[index].scale),
+                        *doc.handles[index + 1 :],
+                    ),
+                )
+                editor.wait()
+                previews.append(time.perf_counter() - start)
+            figures[bool(autosave)] = (statistics.median(assign), statistics.median(alone) if alone else 0.0, statistics.median(previews))
+    on, off = figures[True], figures[False]
+    print(f"autosave of the {len(scene.handles)}-handle document ({size} bytes), median of {edits} edits:")
+    print(f"  the write alone (temporary file + rename): {1000 * on[1]:.2f} ms")
+    print(f"  the assignment (validate, record, schedule, autosave): {1000 * on[0]:.2f} ms with autosave, {1000 * off[0]:.2f} ms without")
+    print(f"  edit -> preview set, median of {edits // 10}: {1000 * on[2]:.0f} ms with autosave, {1000 * off[2]:.0f} ms without")
+
+
 def browser_side() -> None:
     artifacts = Path(os.environ.get("OMNIWIDGET_ARTIFACTS", REPO_ROOT / "test-artifacts"))
     test = REPO_ROOT / "tests" / "test_editor_browser.py"
@@ -95,6 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--browser", action="store_true", help="also run the real-browser test and report its latency")
     args = parser.parse_args(argv)
     kernel_side(args.repeat)
+    autosave_cost()
     if args.browser:
         browser_side()
     return 0

@@ -174,7 +174,7 @@ def preview(image, scene, repeat: int) -> None:
     except ImportError as exc:
         print(f"  skipped: {exc}")
         return
-    editor = Editor(image, scene)
+    editor = Editor(image, scene, autosave=False)  # its cost per edit: bench_editor.py
     editor.wait()
     index = next(i for i, h in enumerate(scene.handles) if isinstance(h, PointHandle))
     walls = []

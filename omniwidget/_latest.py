@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import logging
 import threading
 from collections.abc import Callable
+
+_log = logging.getLogger("omniwidget")
 
 
 class Latest:
@@ -38,6 +41,8 @@ class Latest:
                 self._running = True
             try:
                 job()
+            except Exception:  # a job reports its own errors; one that does not must not stop the worker
+                _log.exception("a job of the %s worker failed", self._name)
             finally:
                 with self._cond:
                     self._running = False

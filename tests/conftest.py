@@ -12,6 +12,24 @@ from omniwidget.core import coords
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _no_autosave_by_default():
+    """Editors made by tests (and the kernels they start) autosave only where a test asks them to.
+
+    Without this, ``Editor(ow.sample_path())`` would write its autosave into the working
+    folder and the next test's editor would start from it.
+    """
+    import os
+
+    old = os.environ.get("OMNIWIDGET_AUTOSAVE")
+    os.environ["OMNIWIDGET_AUTOSAVE"] = "0"
+    yield
+    if old is None:
+        os.environ.pop("OMNIWIDGET_AUTOSAVE", None)
+    else:
+        os.environ["OMNIWIDGET_AUTOSAVE"] = old
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20201121)

@@ -1,6 +1,7 @@
 """The editor widget's model, without a browser: what the kernel does with what the front end sends."""
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -310,3 +311,277 @@ def test_a_refused_command_while_computing_keeps_the_result_coming(editor, monke
     status = editor.wait()
     assert status["state"] == "idle" and editor.preview_result.handles == editor.document
     assert "handles[3]" in status["error"]  # the message outlives the result that arrived after it
+
+
+# --- the editor never loses work (issue 8) ------------------------------------------------------
+POINT = {"kind": "point", "position": [100.0, -20.0], "scale": 2.0}
+
+
+@pytest.fixture
+def room(tmp_path):
+    """The bundled panorama copied into a writable folder of its own."""
+    import shutil
+
+    return Path(shutil.copy(ow.sample_path(), tmp_path / "room.jpg"))
+
+
+def on_disk(path: Path) -> dict:
+    return ow.load_handles(path).to_dict()
+
+
+def normal(document: dict) -> dict:
+    """A document as the editor holds it (every field spelled out)."""
+    return ow.Handles.from_dict(document).to_dict()
+
+
+def test_every_edit_is_autosaved_next_to_the_image_and_a_new_editor_restores_it(room):
+    ed = Editor(room, autosave=True)
+    assert ed.autosave_path == room.with_name("room.jpg.omniwidget-autosave.json")
+    assert not ed.autosave_path.exists()  # opening writes nothing
+    ed.set_state({"handles": doc(WINDOW_TOP)})  # drawn in the browser
+    assert on_disk(ed.autosave_path) == ed.handles
+    ed.handles = doc(WINDOW_TOP, POINT)  # from Python
+    assert on_disk(ed.autosave_path) == ed.handles
+    ed._on_message(ed, {"op": "rectify_all"}, [])  # a button
+    rectified = ed.handles
+    assert on_disk(ed.autosave_path) == rectified
+    ed.undo()
+    assert on_disk(ed.autosave_path) == ed.handles == normal(doc(WINDOW_TOP, POINT))
+    ed.redo()
+    assert on_disk(ed.autosave_path) == rectified
+    ed.wait()
+    assert sorted(p.name for p in room.parent.iterdir()) == ["room.jpg", "room.jpg.omniwidget-autosave.json"]  # no temporary files left
+
+    again = Editor(room, autosave=True)  # after a kernel restart, say
+    assert again.handles == rectified
+    assert again.status["notice"].startswith(f"restored 2 handles from {again.autosave_path}")
+    assert again.history == {"undo": 1, "redo": 0}
+    again.undo()  # back to no handles, if that was wanted
+    assert len(again.document) == 0 and on_disk(again.autosave_path) == again.handles
+    assert again.status["notice"] == ""
+    assert again.wait()["state"] == "idle"
+
+
+def test_an_array_or_an_image_in_a_folder_not_to_write_to_autosaves_in_the_working_folder(tmp_path, monkeypatch, room):
+    import os
+
+    monkeypatch.chdir(tmp_path)
+    image = ow.sample_image()
+    ed = Editor(image, autosave=True)
+    assert ed.autosave_path.parent == tmp_path and ed.autosave_path.name.startswith("panorama-")
+    assert ed.autosave_path.name.endswith(".omniwidget-autosave.json")
+    assert Editor(image.copy(), autosave=True).autosave_path == ed.autosave_path  # named by the pixels
+    other = image.copy()
+    other[0, 0] += 1
+    assert Editor(other, autosave=True).autosave_path != ed.autosave_path
+    ed.handles = doc(POINT)
+    assert Editor(image.copy(), autosave=True).handles == ed.handles
+    # the bundled sample: never written next to it, in the package
+    sample = Editor(ow.sample_path(), autosave=True)
+    assert sample.autosave_path.parent == tmp_path and sample.autosave_path.name.startswith("hotel_room-")
+    # a folder that cannot be written to
+    monkeypatch.setattr(os, "access", lambda *args, **kwargs: False)
+    assert Editor(room, autosave=True).autosave_path.parent == tmp_path
+    monkeypatch.undo()
+    ed.wait()
+
+
+def test_autosave_can_be_turned_off_or_sent_elsewhere(tmp_path, monkeypatch, room):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("OMNIWIDGET_AUTOSAVE", "0")  # as for the whole test session (conftest.py)
+    assert Editor(room).autosave_path is None
+    monkeypatch.delenv("OMNIWIDGET_AUTOSAVE")
+    assert Editor(room).autosave_path == room.with_name("room.jpg.omniwidget-autosave.json")  # on by default
+    off = Editor(room, autosave=False)
+    off.handles = doc(POINT)
+    assert off.autosave_path is None and not room.with_name("room.jpg.omniwidget-autosave.json").exists()
+    folder = tmp_path / "saves"
+    folder.mkdir()
+    into = Editor(room, autosave=folder)  # a folder
+    assert into.autosave_path.parent == folder and into.autosave_path.name.startswith("room-")
+    file = Editor(room, autosave=tmp_path / "mine.json")  # a file
+    file.handles = doc(POINT)
+    assert on_disk(tmp_path / "mine.json") == file.handles
+    with pytest.raises(ValueError, match="does not exist"):
+        Editor(room, autosave=tmp_path / "missing" / "mine.json")
+    with pytest.raises(TypeError, match="autosave must be True, False or a path"):
+        Editor(room, autosave=1)
+    file.wait()
+
+
+def test_given_handles_win_and_the_autosave_is_kept_until_the_first_edit(room):
+    first = Editor(room, autosave=True)
+    first.handles = doc(WINDOW_TOP, POINT)
+    kept = first.autosave_path.read_bytes()
+    given = Editor(room, handles=doc(POINT), autosave=True)
+    assert given.handles == normal(doc(POINT))
+    assert "is not used: handles were given" in given.status["notice"] and "(2 handles)" in given.status["notice"]
+    assert given.autosave_path.read_bytes() == kept  # left alone until the person edits
+    given.handles = doc({**POINT, "scale": 3.0})
+    assert on_disk(given.autosave_path) == given.handles
+    given.wait()
+
+
+@pytest.mark.parametrize(
+    ("content", "problem"),
+    [
+        (b'{"handles": [{"kind": "point", "posit', "not valid JSON"),
+        (b"\xff\xfe\x00garbage", "not valid JSON"),
+        (json.dumps(doc({"kind": "point", "position": [0, 95]})).encode(), "handles[0].position[1] (latitude): 95 is out of range"),
+        (None, "cannot read the handles file"),  # a folder where the file should be
+    ],
+    ids=["truncated", "binary", "invalid handle", "unreadable"],
+)
+def test_a_corrupt_autosave_never_stops_the_editor_opening_and_is_kept_aside(room, content, problem):
+    path = room.with_name("room.jpg.omniwidget-autosave.json")
+    if content is None:
+        path.mkdir()
+    else:
+        path.write_bytes(content)
+    ed = Editor(room, autosave=True)
+    assert len(ed.document) == 0
+    notice = ed.status["notice"]
+    assert notice.startswith(f"could not restore the autosave: {path}") and problem in notice, notice
+    assert "opened with no handles" in notice and "room.jpg.omniwidget-autosave.json.bad" in notice
+    assert ed.wait()["state"] == "idle"
+    again = Editor(room, autosave=True)  # opening again changes nothing on disk
+    assert again.status["notice"] == notice
+    assert path.is_dir() if content is None else path.read_bytes() == content
+    ed.handles = doc(POINT)  # the first edit: the bad file is moved aside, the autosave written
+    bad = path.with_name(path.name + ".bad")
+    assert bad.is_dir() if content is None else bad.read_bytes() == content
+    assert on_disk(path) == ed.handles
+    assert ed.status["notice"] == f"the unreadable autosave was kept as {bad}"
+    ed.handles = doc(WINDOW_TOP)
+    assert ed.status["notice"] == "" and sorted(p.name for p in room.parent.iterdir())[-1] == bad.name
+    ed.wait()
+
+
+def test_a_corrupt_autosave_is_kept_aside_when_handles_are_given_too(room):
+    path = room.with_name("room.jpg.omniwidget-autosave.json")
+    path.write_bytes(b"{")
+    ed = Editor(room, handles=doc(POINT), autosave=True)
+    assert ed.handles == normal(doc(POINT))
+    assert ed.status["notice"].startswith(f"the autosave is unreadable: {path}: not valid JSON")
+    ed.handles = doc(WINDOW_TOP)
+    assert path.with_name(path.name + ".bad").read_bytes() == b"{" and on_disk(path) == ed.handles
+    ed.wait()
+
+
+def test_an_autosave_that_cannot_be_written_is_shown_and_the_edit_stands(tmp_path, room):
+    folder = tmp_path / "saves"
+    folder.mkdir()
+    ed = Editor(room, autosave=folder / "room.json")
+    folder.rmdir()  # the folder went away (an unmounted disk, say)
+    ed.handles = doc(POINT)
+    assert ed.handles == normal(doc(POINT)) and len(ed._undo) == 1
+    notice = ed.wait()["notice"]
+    assert notice.startswith(f"could not autosave to {folder / 'room.json'} (No such file or directory)")
+    assert "Save or Download them" in notice
+    assert ed.status["state"] == "idle"  # the preview is computed all the same
+    folder.mkdir()
+    ed.handles = doc(WINDOW_TOP)
+    assert ed.status["notice"] == "" and on_disk(folder / "room.json") == ed.handles
+    ed.wait()
+
+
+def _raise(exc):
+    def broken(*args, **kwargs):
+        raise exc
+
+    return broken
+
+
+@pytest.mark.parametrize(
+    ("targets", "exc", "shown"),
+    [
+        (["omniwidget.core.pipeline.build_constraints"], ValueError("the constraints are inconsistent"), "ValueError: the constraints"),
+        (["omniwidget.core.mesh.adaptive_mesh"], MemoryError(), "MemoryError: out of memory"),
+        (["omniwidget.core.bbw.bbw"], np.linalg.LinAlgError("Singular matrix"), "LinAlgError: Singular matrix"),
+        (
+            ["omniwidget.core._kernels.walk_blend", "omniwidget.core.sampled.sampled_coordinates", "omniwidget.core.blend.blended_inverse"],
+            FloatingPointError("overflow encountered in the blend"),
+            "FloatingPointError: overflow encountered in the blend",
+        ),
+        (["omniwidget.core.pipeline.remap"], RuntimeError(), "(RuntimeError)"),
+        (["omniwidget.widget.editor._jpeg"], ow.ImageError("could not encode the image for display"), "ImageError: could not encode"),
+    ],
+    ids=["constraints", "mesh", "solver", "blend", "resampling", "display"],
+)
+def test_an_error_anywhere_in_the_computation_is_shown_and_the_next_edit_recovers(room, monkeypatch, targets, exc, shown):
+    ed = Editor(room, doc(WINDOW_TOP, POINT), autosave=True)
+    assert ed.wait()["state"] == "idle"
+    good_preview, good_outputs = ed.preview, ed.outputs
+    for target in targets:
+        monkeypatch.setattr(target, _raise(exc))
+    edited = doc(WINDOW_TOP, POINT, {"kind": "point", "position": [-100.0, 10.0], "scale": 1.5})
+    ed.set_state({"handles": edited})  # an edit from the browser, while the kernel is broken
+    status = ed.wait()
+    assert status["state"] == "error"
+    assert status["error"] == status["message"]
+    assert status["error"].startswith("could not compute the result (") and shown in status["error"], status["error"]
+    assert status["error"].endswith("the handles are kept and the last good result stays")
+    assert "Traceback" not in status["error"]
+    assert ed.handles == normal(edited) and on_disk(ed.autosave_path) == normal(edited)  # the edit is kept, and on disk
+    assert ed.preview == good_preview and ed.outputs == good_outputs  # the last good result stays
+    assert ed.last_error is exc and ed.history["undo"] == 1
+    monkeypatch.undo()  # the kernel works again: the next edit recovers
+    ed.handles = doc(WINDOW_TOP, POINT, {"kind": "point", "position": [-100.0, 10.0], "scale": 2.5})
+    status = ed.wait()
+    assert status["state"] == "idle" and status["error"] == ""
+    assert ed.preview != good_preview and len(ed.outputs) == 3
+
+
+@pytest.mark.parametrize("where", ["image", "outputs"])
+def test_a_result_that_is_not_finite_is_refused_like_an_error(monkeypatch, where):
+    from omniwidget.widget import editor as module
+
+    image = ow.sample_image().astype(np.float32) / 255
+    ed = Editor(image, doc(WINDOW_TOP, POINT), autosave=False)
+    assert ed.wait()["state"] == "idle"
+    shown = ed.preview
+    if where == "image":
+        real = pipeline.remap
+        monkeypatch.setattr(pipeline, "remap", lambda *args, **kwargs: real(*args, **kwargs) * np.float32("nan"))
+    else:
+        real = module._output_points
+        monkeypatch.setattr(module, "_output_points", lambda *args: [[[float("nan"), 0.0]] * 3 for _ in real(*args)])
+    ed.handles = doc(WINDOW_TOP, {**POINT, "scale": 3.0})
+    status = ed.wait()
+    assert status["state"] == "error" and "not finite numbers" in status["error"]
+    assert ed.preview == shown and ed.handles == normal(doc(WINDOW_TOP, {**POINT, "scale": 3.0}))
+
+
+@pytest.mark.parametrize(
+    ("sent", "problem"),
+    [
+        ('{"format": "omniwidget.handles", "handles": [{"kind": "point", "position": [1,', "not valid JSON"),
+        ([1, 2], "a handles document is a JSON object"),
+        (None, "a handles document is a JSON object"),
+        ({"handles": [{"kind": "point", "position": [float("nan"), 0.0]}]}, "handles[0].position[0]"),
+        ({"handles": [{"kind": "spline", "points": []}]}, "handles[0]"),
+    ],
+    ids=["broken JSON text", "a list", "null", "NaN", "unknown kind"],
+)
+def test_a_bad_edit_from_the_front_end_is_refused_with_a_message_and_changes_nothing(room, sent, problem):
+    ed = Editor(room, doc(WINDOW_TOP), autosave=True)
+    ed.handles = doc(WINDOW_TOP, POINT)
+    kept, on_file = ed.handles, ed.autosave_path.read_bytes()
+    history = dict(ed.history)
+    ed.set_state({"handles": sent})
+    assert ed.handles == kept and ed.autosave_path.read_bytes() == on_file and ed.history == history
+    assert ed.status["error"].startswith("that edit was refused: ") and problem in ed.status["error"], ed.status["error"]
+    ed.set_state({"stage": "sideways"})  # any other refused value: reported, not raised
+    assert ed.stage == "draw" and "that edit was refused" in ed.status["error"]
+    ed.wait()
+
+
+def test_a_job_that_raises_does_not_stop_the_worker(caplog):
+    from omniwidget._latest import Latest
+
+    worker, done = Latest("test-worker"), []
+    worker.submit(_raise(RuntimeError("a bug")))
+    assert worker.wait(10)
+    worker.submit(lambda: done.append(1))
+    assert worker.wait(10) and done == [1]
+    assert "a bug" in caplog.text

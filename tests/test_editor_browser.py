@@ -321,3 +321,112 @@ def test_weights_pane_renders_rotates_and_follows_the_selection_in_jupyterlab(ju
         outside = [u for u in requests if not u.startswith(("http://127.0.0.1", "http://localhost", "data:", "blob:", "about:"))]
         assert outside == [], outside
         assert nb.console_errors() == [], "\n".join(nb.console_errors())
+
+
+RESTART_NOTEBOOK = [
+    "import json\nimport omniwidget as ow\n\ned = ow.Editor(ow.sample_path(), height=360, autosave=True)\ned",
+]
+
+BREAK_SOLVER = """
+import numpy as np
+import omniwidget.core.bbw as _bbw
+
+_solve = _bbw.bbw
+
+
+def _broken(*args, **kwargs):
+    raise np.linalg.LinAlgError("Singular matrix")
+
+
+_bbw.bbw = _broken
+"""
+
+
+def test_a_kernel_error_mid_edit_and_a_kernel_restart_lose_no_handles(jupyter_server, browser):
+    """Issue 8: the solver raises during an edit (the message shows, the handles stay); after a restart they come back."""
+    bh.write_notebook(jupyter_server.root / "restart.ipynb", RESTART_NOTEBOOK)
+    with bh.NotebookPage(browser, jupyter_server, "restart.ipynb") as nb:
+        nb.run_all()
+        nb.wait_for_output(".ow-editor")
+        generation = wait_idle(nb, 0, "the first result on screen")
+        page, client = nb.page, nb.kernel_client()
+        autosave = Path(kernel_json(client, "str(ed.autosave_path)"))
+        assert autosave.parent == jupyter_server.root  # the bundled sample's folder is the package's: the notebook's folder
+
+        def kernel_handles(count: int) -> dict | None:
+            handles = kernel_json(client, "ed.handles")
+            return handles if len(handles["handles"]) == count else None
+
+        # 1. a line drawn with the mouse and rectified, and a point: each edit is on disk at once
+        nb.output('[data-tool="line"]').click()
+        pane = Pane(nb, "input")
+        drag(page, [pane.at(p) for p in coords.geodesic(*WINDOW_TOP, np.linspace(0.0, 1.0, 8))])
+        bh.wait_until(lambda: kernel_handles(1), timeout=20, description="the drawn line in the kernel")
+        nb.output('[data-action="rectify-all"]').click()  # the line's own map: from now on the maps are blended
+        bh.wait_until(lambda: kernel_json(client, "ed.document.handles[0].rectify"), timeout=20, description="the rectified line")
+        nb.output('[data-tool="point"]').click()
+        page.mouse.click(*pane.at((100.0, -10.0)))
+        before = bh.wait_until(lambda: kernel_handles(2), timeout=20, description="the point in the kernel")
+        generation = wait_idle(nb, generation, "the result with the line and the point")
+        assert ow.load_handles(autosave).to_dict() == before
+
+        # 2. the solver raises during the next edit, a third handle placed in the browser
+        bh.run_in_kernel(client, BREAK_SOLVER)
+        page.mouse.click(*pane.at((-100.0, 10.0)))
+        bh.wait_until(
+            lambda: editor_attr(nb, "data-state") == "error",
+            timeout=30,
+            description="the editor showing an error",
+            diagnostics=lambda: f"kernel: {kernel_json(client, '[ed.handles, ed.status]')}\n{nb.diagnostics()}",
+        )
+        message = nb.output(".ow-message").first
+        text = message.inner_text()
+        assert "could not compute the result (LinAlgError: Singular matrix)" in text, text
+        assert "the handles are kept and the last good result stays" in text and "Traceback" not in text, text
+        assert "ow-error" in (message.get_attribute("class") or "")
+        after = kernel_json(client, "ed.handles")
+        assert after["handles"][:2] == before["handles"] and len(after["handles"]) == 3  # the edit is kept, nothing lost
+        assert json.loads(editor_attr(nb, "data-handles")) == after  # and drawn in the browser
+        assert ow.load_handles(autosave).to_dict() == after
+        assert int(editor_attr(nb, "data-generation")) == generation  # the last good result is still the one shown
+        nb.screenshot("editor_kernel_error")
+
+        # 3. the next edit recovers: the new point moved a little with the mouse
+        bh.run_in_kernel(client, "_bbw.bbw = _solve")
+        nb.output('[data-tool="select"]').click()
+        drag(page, [pane.at((-100.0, 10.0)), pane.at((-97.0, 11.0)), pane.at((-95.0, 12.0))])
+        generation = wait_idle(nb, generation, "the result once the solver works again")
+        assert "could not compute" not in message.inner_text()
+        work = kernel_json(client, "ed.handles")
+        assert len(work["handles"]) == 3 and coords.angular_distance(work["handles"][2]["position"], (-95.0, 12.0)) < 0.5
+        assert ow.load_handles(autosave).to_dict() == work
+
+        # 4. restart the kernel (as Kernel > Restart Kernel does) and run the cell again: the handles come back
+        (session,) = [s for s in jupyter_server.api("GET", "/api/sessions") if s["path"] == "restart.ipynb"]
+        jupyter_server.api("POST", f"/api/kernels/{session['kernel']['id']}/restart", timeout=60)
+        fresh = bh.kernel_client(jupyter_server, "restart.ipynb")
+        try:
+            assert bh.run_in_kernel(fresh, "print('ed' in dir())").strip() == "False"  # a new kernel: nothing in memory
+            bh.wait_until(
+                lambda: (nb.state().get("kernel") or {}).get("status") == "idle",
+                timeout=30,
+                description="JupyterLab to see the restarted kernel idle",
+                diagnostics=nb.diagnostics,
+            )
+            nb.run_all()
+
+            def restored():
+                editors = nb.output(".ow-editor")
+                if editors.count() != 1 or editors.first.get_attribute("data-state") != "idle":
+                    return None
+                return json.loads(editors.first.get_attribute("data-handles")) == work
+
+            bh.wait_until(restored, timeout=60, description="the restarted editor showing the handles again", diagnostics=nb.diagnostics)
+            text = nb.output(".ow-message").first.inner_text()
+            assert f"restored 3 handles from {autosave}" in text, text
+            assert json.loads(bh.run_in_kernel(fresh, "print(json.dumps(ed.handles))")) == work
+            assert int(editor_attr(nb, "data-generation")) > 0  # and their result is on screen
+        finally:
+            fresh.stop_channels()
+        nb.screenshot("editor_restored")
+        assert nb.console_errors() == [], "\n".join(nb.console_errors())

@@ -5,7 +5,9 @@ step) draws the panorama and the handles and does every drag in the browser. The
 hears of whole edits only: the handles document when a drag ends, or a command (undo,
 rectify, reset, an arrow tip moved, save, load). Each edit is recomputed in a background
 thread at preview size and the image sent back; an edit made while a computation runs
-supersedes it, so no stale result is ever shown.
+supersedes it, so no stale result is ever shown. A computation that fails is shown in the
+widget and changes nothing else; every edit is also written to an autosave file, which the
+next editor of the same image starts from (a kernel restart loses nothing).
 
 Everything the two sides exchange is in ``[lon, lat]`` degrees (the handles document of
 :mod:`omniwidget.core.handles`), never display pixels, whatever size the image is shown at.
@@ -13,6 +15,7 @@ Everything the two sides exchange is in ``[lon, lat]`` degrees (the handles docu
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
@@ -38,7 +41,7 @@ from ..core.io import check_panorama, read_image
 if TYPE_CHECKING:
     from ..core.constraints import Constraints
 
-__all__ = ["DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "Editor", "saved_handles"]
+__all__ = ["AUTOSAVE_SUFFIX", "DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "Editor", "saved_handles"]
 
 #: Width of the result computed after every edit (the issue's "about 1024 x 512").
 PREVIEW_WIDTH = 1024
@@ -46,8 +49,13 @@ PREVIEW_WIDTH = 1024
 DISPLAY_WIDTH = 2048
 #: Edits kept for undo.
 HISTORY = 500
+#: The autosave file's name ends so: ``room.jpg.omniwidget-autosave.json`` next to ``room.jpg``.
+AUTOSAVE_SUFFIX = ".omniwidget-autosave.json"
+#: Set to ``0`` (or ``off``, ``false``, ``no``) to turn autosave off where not asked for explicitly.
+AUTOSAVE_ENV = "OMNIWIDGET_AUTOSAVE"
 
 _STATIC = Path(__file__).parent / "static"
+_PACKAGE = Path(__file__).resolve().parents[1]  # never written to (the bundled sample lives here)
 _HANDLE_NAME = re.compile(r"handles\[(\d+)\]")
 
 
@@ -144,6 +152,85 @@ def _reset(h: PointHandle | LineHandle | CageHandle) -> PointHandle | LineHandle
     return replace(h, targets=None)
 
 
+# --- autosave ----------------------------------------------------------------------------------
+def _digest(data: bytes | memoryview) -> str:
+    return hashlib.blake2b(data, digest_size=6).hexdigest()
+
+
+def _autosave_name(image_path: Path | None, image: NDArray) -> str:
+    """The autosave's name away from the image: the image's name and a digest of its path, or of an array's pixels."""
+    if image_path is not None:
+        return f"{image_path.stem}-{_digest(str(image_path.resolve()).encode())}{AUTOSAVE_SUFFIX}"
+    pixels = np.ascontiguousarray(image)
+    header = f"{pixels.shape}{pixels.dtype.str}".encode()
+    return f"panorama-{_digest(header + _digest(memoryview(pixels).cast('B')).encode())}{AUTOSAVE_SUFFIX}"
+
+
+def _autosave_location(autosave: Any, image_path: Path | None, image: NDArray) -> Path | None:
+    """Where the editor of this image autosaves its handles, or None when it does not (see :class:`Editor`)."""
+    if autosave is None:
+        off = os.environ.get(AUTOSAVE_ENV, "").strip().lower() in ("0", "off", "false", "no")
+        autosave = not off
+    if isinstance(autosave, bool):
+        if not autosave:
+            return None
+        if image_path is not None:
+            folder = image_path.resolve().parent
+            if not folder.is_relative_to(_PACKAGE) and os.access(folder, os.W_OK | os.X_OK):
+                return image_path.with_name(image_path.name + AUTOSAVE_SUFFIX)
+        return Path.cwd() / _autosave_name(image_path, image)
+    if not isinstance(autosave, (str, os.PathLike)):
+        raise TypeError(f"autosave must be True, False or a path (a file or a folder), got {type(autosave).__name__}")
+    path = Path(autosave)
+    if path.is_dir():
+        return path / _autosave_name(image_path, image)
+    if not path.parent.is_dir():
+        raise ValueError(f"autosave: the folder {path.parent} does not exist")
+    return path
+
+
+def _aside(path: Path) -> Path:
+    """A free name next to ``path`` to keep an unreadable autosave under: ``<name>.bad``, ``<name>.2.bad``, ..."""
+    candidate, n = path.with_name(path.name + ".bad"), 1
+    while candidate.exists() or candidate.is_symlink():
+        n += 1
+        candidate = path.with_name(f"{path.name}.{n}.bad")
+    return candidate
+
+
+def _read_autosave(path: Path) -> tuple[Handles | None, str]:
+    """The autosave's document (None when there is none or it is unreadable) and, when unreadable, why."""
+    if not (path.exists() or path.is_symlink()):
+        return None, ""
+    try:
+        return load_handles(path), ""
+    except HandlesError as exc:
+        problem = str(exc)
+    except Exception as exc:  # noqa: BLE001 - whatever is wrong with the file, the editor opens
+        problem = f"{path}: {type(exc).__name__}: {exc}"
+    return None, problem
+
+
+def _exception_text(exc: BaseException) -> str:
+    """``Name: message`` of an exception, readable when the message is empty (a bare MemoryError, say)."""
+    name = type(exc).__name__
+    try:
+        detail = str(exc).strip()
+    except Exception:  # noqa: BLE001 - a broken __str__ must not hide the error itself
+        detail = ""
+    if not detail and isinstance(exc, MemoryError):
+        detail = "out of memory"
+    return f"{name}: {detail}" if detail else name
+
+
+def _count(doc: Handles) -> str:
+    return f"{len(doc)} handle" if len(doc) == 1 else f"{len(doc)} handles"
+
+
+def _finite_outputs(outputs: list[list[list[float]]]) -> bool:
+    return all(np.isfinite(points).all() for points in outputs if points)
+
+
 class Editor(anywidget.AnyWidget):
     """Draw handles on an equirectangular panorama and see the rectified result as you go.
 
@@ -154,7 +241,9 @@ class Editor(anywidget.AnyWidget):
         file). It stays in Python at full size; the browser gets a copy at most
         :data:`DISPLAY_WIDTH` wide.
     handles : Handles, dict, str or path-like, optional
-        The handles to start from: a document, its JSON-ready dict or text, or a handles file.
+        The handles to start from: a document, its JSON-ready dict or text, or a handles file
+        (:func:`saved_handles` reads those of a saved notebook's widget state). Without them
+        the editor starts from the image's autosave, when there is one.
     preview_width : int
         Width of the result computed after each edit (even).
     handles_path : path-like, optional
@@ -162,6 +251,21 @@ class Editor(anywidget.AnyWidget):
         the working folder (the notebook's).
     height : int
         Height of the drawing area in CSS pixels.
+    autosave : bool or path-like, optional
+        Write the handles document (whole, through a temporary file and a rename) after
+        every edit, undo and redo, so that a kernel restart or a crash loses nothing. True
+        (the default, unless the environment variable ``OMNIWIDGET_AUTOSAVE`` is ``0``):
+        next to the image as ``<image file name>.omniwidget-autosave.json`` when it was
+        opened from a file in a writable folder; otherwise (an array, the bundled sample,
+        a read-only folder) in the working folder as
+        ``<image stem>-<digest>.omniwidget-autosave.json``, the digest being of the image's
+        path, or of an array's pixels. A folder puts that second name there; any other path
+        is the file itself. False: no autosave. An editor opened without ``handles`` starts
+        from the autosave and says so in :attr:`status` (undo goes back to no handles);
+        given ``handles`` win, and the autosave is left alone until the first edit. An
+        unreadable autosave never stops the editor opening: it opens with no handles, the
+        status says what is wrong with the file, and the file is kept, renamed to
+        ``<name>.bad`` at the first edit.
 
     Attributes
     ----------
@@ -182,9 +286,16 @@ class Editor(anywidget.AnyWidget):
     status : dict
         ``state`` ("busy", "idle" or "error": the last computation failed), ``message``,
         ``error`` (why the computation, or a command or edit since the last edit, failed; the
-        handles are kept whatever fails), ``warnings`` (conflicts and
+        handles are kept whatever fails, with the edit that could not be computed, and the
+        last good result stays on screen), ``notice`` (the autosave: handles restored from
+        it, a file that could not be read or written), ``warnings`` (conflicts and
         fold-overs, naming handles), ``conflicts`` (their indices), ``fold_area`` (share of
         the sphere shown turned over), ``seconds`` and ``width`` of the last computation.
+    autosave_path : Path or None
+        The autosave file (see ``autosave``), None when autosave is off.
+    last_error : BaseException or None
+        The exception of the last computation that failed, with its traceback, for a closer
+        look (the widget shows its type and message).
 
     Examples
     --------
@@ -216,6 +327,7 @@ class Editor(anywidget.AnyWidget):
         preview_width: int = PREVIEW_WIDTH,
         handles_path: str | os.PathLike[str] | None = None,
         height: int = 480,
+        autosave: bool | str | os.PathLike[str] | None = None,
     ) -> None:
         from ..core._checks import whole_number
 
@@ -242,9 +354,30 @@ class Editor(anywidget.AnyWidget):
         self._ready = False  # the trait's first value is not an edit
         self._preview_result: Any = None  # the Result on screen
         self._full_result: tuple[str, Any] | None = None
+        self.last_error: BaseException | None = None
+        self.autosave_path = _autosave_location(autosave, self._image_path, self._image)
+        self._notice = ""  # status["notice"]
+        self._autosave_bad = False  # the autosave file is unreadable: moved aside at the first edit
         if isinstance(handles, (str, os.PathLike)) and not str(handles).lstrip().startswith("{"):
             handles = load_handles(handles)
         doc = Handles() if handles is None else _as_document(handles)
+        saved, problem = _read_autosave(self.autosave_path) if self.autosave_path is not None else (None, "")
+        if handles is None and saved is not None and len(saved):
+            self._undo.append(doc.to_dict())  # undo: start without them
+            doc = saved
+            self._notice = f"restored {_count(saved)} from {self.autosave_path} (undo to start without them)"
+        elif problem:
+            self._autosave_bad = True
+            kept = f"the file is kept, as {_aside(self.autosave_path).name} from the first edit"
+            self._notice = (
+                f"could not restore the autosave: {problem}; opened with no handles ({kept})"
+                if handles is None
+                else f"the autosave is unreadable: {problem}; handles were given ({kept})"
+            )
+        elif saved is not None and len(saved) and saved != doc:
+            self._notice = (
+                f"the autosave {self.autosave_path} ({_count(saved)}) is not used: handles were given; the first edit replaces it"
+            )
         super().__init__(
             handles=doc.to_dict(),
             height=height,
@@ -287,15 +420,40 @@ class Editor(anywidget.AnyWidget):
             self._undo.append(change["old"])
             del self._undo[:-HISTORY]
             self._redo.clear()
-        self._changed(Handles.from_dict(change["new"]))
+        doc = Handles.from_dict(change["new"])
+        self._changed(doc)  # the preview starts first; the autosave is written meanwhile
+        self._autosave(doc)
 
     def set_state(self, sync_data: dict) -> None:
-        """Apply state sent by the front end; a refused document is reported, not raised."""
+        """Apply state sent by the front end; a refused document (or value) is reported, not raised."""
         try:
             super().set_state(sync_data)
-        except HandlesError as exc:
+        except (HandlesError, traitlets.TraitError) as exc:
             self._report_error(f"that edit was refused: {exc}")
-            self.send_state("handles")  # the browser goes back to the handles kept here
+            keys = [key for key in sync_data if key in self.keys] or None
+            self.send_state(keys)  # the browser goes back to what is kept here
+
+    def _autosave(self, doc: Handles) -> None:
+        """Write the autosave file (whole or not at all); a failure is shown, never raised."""
+        path = self.autosave_path
+        if path is None:
+            return
+        notice = ""
+        try:
+            if self._autosave_bad:
+                bad = _aside(path)
+                if path.exists() or path.is_symlink():
+                    os.replace(path, bad)
+                self._autosave_bad = False
+                notice = f"the unreadable autosave was kept as {bad}"
+            save_handles(doc, path)
+        except Exception as exc:  # noqa: BLE001 - the edit stands; the person is told it is not on disk
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else _exception_text(exc)
+            notice = f"could not autosave to {path} ({reason}): these handles are not on disk; Save or Download them"
+        if notice != self._notice:
+            self._notice = notice
+            with self._lock:
+                self.status = {**self.status, "notice": notice}
 
     def _restore(self, doc: dict) -> None:
         """Set the handles without recording an edit (undo and redo)."""
@@ -317,7 +475,7 @@ class Editor(anywidget.AnyWidget):
         with self._lock:
             self._generation += 1
             generation = self._generation
-            self.status = {**self.status, "state": "busy", "message": "computing...", "error": ""}
+            self.status = {**self.status, "state": "busy", "message": "computing...", "error": "", "notice": self._notice}
         self._worker.submit(lambda: job(generation))
 
     def _report_error(self, message: str) -> None:
@@ -352,13 +510,18 @@ class Editor(anywidget.AnyWidget):
         start = time.perf_counter()
         try:
             result = self._warp(doc, key, full)
+            outputs = _output_points(doc, result.constraints)
+            if not _finite_outputs(outputs):
+                raise FloatingPointError("the handles' outputs are not finite numbers")
+            if result.image.dtype.kind == "f" and not np.isfinite(result.image).all():  # the input is finite (check_panorama)
+                raise FloatingPointError("the result has pixels that are not finite numbers")
             image = _jpeg(_display_rgb8(result.image, DISPLAY_WIDTH))
             folds = _fold_overlay(result.folds.mask)
-            outputs = _output_points(doc, result.constraints)
-        except Exception as exc:  # noqa: BLE001 - shown in the widget, the handles stay
+        except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles and the last good image stay
             with self._lock:
                 if generation == self._generation:
-                    message = f"{type(exc).__name__}: {exc}"
+                    self.last_error = exc
+                    message = f"could not compute the result ({_exception_text(exc)}); the handles are kept and the last good result stays"
                     self.status = {**self.status, "state": "error", "message": message, "error": message}
             return
         seconds = time.perf_counter() - start
@@ -372,6 +535,7 @@ class Editor(anywidget.AnyWidget):
                 self.outputs = outputs
                 self._preview_result = result
                 self.status = {
+                    **self.status,
                     "state": "idle",
                     "error": self.status.get("error", ""),
                     "message": f"{result.image.shape[1]} x {result.image.shape[0]} in {seconds:.2f} s",

@@ -512,11 +512,13 @@ function render({ model, el: host }) {
     const s = status();
     const busy = s.state === "busy";
     root.dataset.busy = String(busy);
+    root.dataset.state = s.state || "";
     spinner.hidden = !busy;
     const parts = [];
     if (busy) parts.push("computing...");
     else if (s.state === "idle" && s.message) parts.push(`result ${s.message}`);
     if (s.error) parts.push(s.error);
+    if (s.notice) parts.push(s.notice);
     if (state.latency !== undefined && s.state === "idle") parts.push(`shown ${state.latency.toFixed(0)} ms after the edit`);
     if (s.fold_area > 0) parts.push(`fold-over ${(100 * s.fold_area).toPrecision(2)}% of the sphere (magenta)`);
     if (localNote) parts.push(localNote);
@@ -897,7 +899,13 @@ function render({ model, el: host }) {
     ["change:source", () => onImage("source")],
     ["change:preview", () => onImage("preview")],
     ["change:folds", () => onImage("folds")],
-    ["change:handles", () => draw()],
+    [
+      "change:handles",
+      () => {
+        showHandlesDocument();
+        draw();
+      },
+    ],
     [
       "change:outputs",
       () => {
@@ -926,12 +934,18 @@ function render({ model, el: host }) {
   ];
   for (const [event, fn] of listeners) model.on(event, fn);
 
+  // The handles drawn, for a glance in the page's inspector (and the real-browser tests).
+  function showHandlesDocument() {
+    root.dataset.handles = JSON.stringify(doc());
+  }
+
   const resize = new ResizeObserver(() => layout());
   resize.observe(panesBox);
   onImage("source");
   onImage("preview");
   onImage("folds");
   layout();
+  showHandlesDocument();
   onStatus();
 
   return () => {
