@@ -125,6 +125,20 @@ def test_undo_and_redo_every_edit_wherever_it_came_from(editor):
     assert editor.history == {"undo": 2, "redo": 0}
 
 
+def test_every_command_says_when_it_is_done_after_changing_the_handles(editor, monkeypatch):
+    """The browser starts no edit while a command is on its way (it would start from the handles before it)."""
+    events = []
+    monkeypatch.setattr(editor, "send", lambda content, buffers=None: events.append(("sent", content)))
+    editor.observe(lambda change: events.append(("handles", len(change["new"]["handles"]))), names="handles")
+    editor.set_state({"handles": doc(WINDOW_TOP)})
+    events.clear()
+    editor._on_message(editor, {"op": "rectify_all"}, [])
+    assert events == [("handles", 1), ("sent", {"done": "rectify_all"})]  # in this order: comm messages keep it
+    events.clear()
+    editor._on_message(editor, {"op": "reset", "index": 7}, [])  # refused: done all the same
+    assert events == [("sent", {"done": "reset"})] and "handles[7]" in editor.status["error"]
+
+
 def test_history_is_bounded_but_deep(editor):
     for i in range(HISTORY + 20):
         editor.handles = doc({"kind": "point", "position": [float(i % 300) - 150, 0.0]})

@@ -362,12 +362,18 @@ def test_a_kernel_error_mid_edit_and_a_kernel_restart_lose_no_handles(jupyter_se
         pane = Pane(nb, "input")
         drag(page, [pane.at(p) for p in coords.geodesic(*WINDOW_TOP, np.linspace(0.0, 1.0, 8))])
         bh.wait_until(lambda: kernel_handles(1), timeout=20, description="the drawn line in the kernel")
-        nb.output('[data-action="rectify-all"]').click()  # the line's own map: from now on the maps are blended
-        bh.wait_until(lambda: kernel_json(client, "ed.document.handles[0].rectify"), timeout=20, description="the rectified line")
         nb.output('[data-tool="point"]').click()
+        # rectify, and a point placed at once: the point waits for the rectification (or is refused
+        # until it is there), and never undoes it by starting from the handles before it
+        nb.output('[data-action="rectify-all"]').click()  # the line's own map: from now on the maps are blended
         page.mouse.click(*pane.at((100.0, -10.0)))
+        bh.wait_until(lambda: editor_attr(nb, "data-pending") == "0", timeout=20, description="the command done")
+        if len(kernel_json(client, "ed.handles")["handles"]) == 1:  # refused ("one moment", shown until done): placed again
+            page.mouse.click(*pane.at((100.0, -10.0)))
         before = bh.wait_until(lambda: kernel_handles(2), timeout=20, description="the point in the kernel")
-        generation = wait_idle(nb, generation, "the result with the line and the point")
+        assert before["handles"][0]["rectify"] is True, before  # the rectification was kept
+        # the result of this very edit (an earlier edit's result may show first, between two computations)
+        generation = wait_idle(nb, kernel_json(client, "ed._generation") - 1, "the result with the line and the point")
         assert ow.load_handles(autosave).to_dict() == before
 
         # 2. the solver raises during the next edit, a third handle placed in the browser

@@ -675,6 +675,8 @@ class Editor(anywidget.AnyWidget):
                 raise ValueError(f"unknown command from the browser: {op!r}")
         except Exception as exc:  # noqa: BLE001 - a person's click: show it, keep the handles
             self._report_error(str(exc) if isinstance(exc, HandlesError) else f"{type(exc).__name__}: {exc}")
+        finally:  # after the handles it changed: the browser starts no edit from the handles before it
+            self.send({"done": op})
 
 
 def saved_handles(notebook: str | os.PathLike[str]) -> list[Handles]:

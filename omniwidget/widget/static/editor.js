@@ -275,7 +275,25 @@ function render({ model, el: host }) {
   const selected = () => model.get("selected");
   const status = () => model.get("status") || {};
 
+  // A command the kernel is still applying may change the handles (undo, rectify, load, ...):
+  // an edit made meanwhile would start from the handles before it and undo it, so none starts
+  // until the kernel says the command is done ("done" message, sent after any change of the handles).
+  const CHANGES_HANDLES = new Set(["undo", "redo", "rectify_all", "rectify_line", "reset", "arrow", "load"]);
+  let pendingSince = 0; // performance.now() of the oldest command not yet done, 0 if none
+  let pendingCount = 0;
+  function setPending(n) {
+    pendingCount = n;
+    root.dataset.pending = String(n); // for a glance in the inspector (and the real-browser tests)
+  }
+  function waitingForKernel() {
+    if (pendingCount > 0 && performance.now() - pendingSince > 10000) setPending(0); // a kernel that never answers
+    if (pendingCount === 0) return false;
+    showLocal("one moment: the kernel is applying the last command");
+    return true;
+  }
+
   function commit(handles) {
+    if (waitingForKernel()) return;
     const next = { ...doc(), handles };
     if (JSON.stringify(next) === JSON.stringify(doc())) return;
     state.released = performance.now();
@@ -285,7 +303,17 @@ function render({ model, el: host }) {
 
   function command(op, content = {}) {
     if (op !== "save") state.released = performance.now(); // every other command changes the result
+    if (CHANGES_HANDLES.has(op)) {
+      if (pendingCount === 0) pendingSince = performance.now();
+      setPending(pendingCount + 1);
+    }
     model.send({ op, ...content });
+  }
+  function onMessage(content) {
+    if (content && content.done !== undefined && CHANGES_HANDLES.has(content.done) && pendingCount > 0) {
+      setPending(pendingCount - 1);
+      if (pendingCount === 0 && localNote.startsWith("one moment")) showLocal("");
+    }
   }
 
   function commandSelected(op) {
@@ -610,6 +638,7 @@ function render({ model, el: host }) {
 
   function onDown(p, e) {
     root.focus({ preventScroll: true });
+    if (e.button === 0 && !state.space && waitingForKernel()) return;
     const [x, y] = local(p, e);
     const at = toLonLatAt(x, y);
     p.canvas.setPointerCapture(e.pointerId);
@@ -933,6 +962,7 @@ function render({ model, el: host }) {
     ["change:height", () => layout()],
   ];
   for (const [event, fn] of listeners) model.on(event, fn);
+  model.on("msg:custom", onMessage);
 
   // The handles drawn, for a glance in the page's inspector (and the real-browser tests).
   function showHandlesDocument() {
@@ -951,6 +981,7 @@ function render({ model, el: host }) {
   return () => {
     resize.disconnect();
     for (const [event, fn] of listeners) model.off(event, fn);
+    model.off("msg:custom", onMessage);
   };
 }
 
