@@ -114,9 +114,15 @@ def cages(draw) -> dict:
 
 handles_ = st.one_of(points(), lines(), cages())
 valid_documents = st.builds(
-    lambda hs, rectify: {"format": "omniwidget.handles", "version": 1, "handles": hs, "options": {"rectify": rectify}},
+    lambda hs, rectify, anchor: {
+        "format": "omniwidget.handles",
+        "version": 1,
+        "handles": hs,
+        "options": {"rectify": rectify, "anchor": anchor},
+    },
     st.lists(handles_, min_size=1, max_size=4),
     st.sampled_from(["all", "each"]),
+    st.one_of(st.none(), st.sampled_from([1.0, 5.0, 30.0, 180.0]), st.floats(1.0, 180.0)),  # the still background, or the paper
 )
 
 
@@ -216,6 +222,9 @@ def broken_documents(draw) -> tuple[dict, str]:
                     ("version", "1"),
                     ("options", []),
                     ("options", {"rectify": "some"}),
+                    ("options", {"anchor": 0.5}),
+                    ("options", {"anchor": "far"}),
+                    ("options", {"anchor": math.nan}),
                     ("colour", 1),
                 ]
             )

@@ -50,6 +50,14 @@ __all__ = [
 
 FORMAT = "omniwidget.handles"
 VERSION = 1
+#: ``options.anchor``'s default: None, the paper's method, until the still background meets all
+#: of its figures (see the README's "A still background"); :data:`SUGGESTED_ANCHOR` is the
+#: measured best distance.
+DEFAULT_ANCHOR: float | None = None
+#: The anchor distance (degrees) that measured best on rooms of 6 to 10 lines.
+SUGGESTED_ANCHOR = 5.0
+#: The range ``options.anchor`` may take, degrees.
+ANCHOR_RANGE = (1.0, 180.0)
 #: Angular distance (radians) from a point handle's centre to its arrow tips, the authors' 0.3 rad.
 ARROW_LENGTH = 0.3
 #: Control points closer than this (degrees) count as coincident.
@@ -211,9 +219,22 @@ Handle = PointHandle | LineHandle | CageHandle
 
 @dataclass(frozen=True)
 class Options:
-    """Document-wide options. ``rectify``: ``"all"`` (Sec. 3.4) or ``"each"`` (eq. 4 per line)."""
+    """Document-wide options.
+
+    Attributes
+    ----------
+    rectify : {"all", "each"}
+        ``"all"``: the lines' targets come from the joint solve of Sec. 3.4; ``"each"``: eq. (4) line by line.
+    anchor : float or None
+        The still background: the sphere farther than this many degrees from every handle
+        keeps its place (an identity map whose weight is 1 there; see
+        :mod:`omniwidget.core.pipeline`). The distance grows with a handle's size. ``None``
+        (``"anchor": null``, the default for now): no background map, the paper's method
+        exactly. :data:`SUGGESTED_ANCHOR` (5) measured best on rooms of lines.
+    """
 
     rectify: Literal["all", "each"] = "all"
+    anchor: float | None = DEFAULT_ANCHOR
 
 
 @dataclass(frozen=True)
@@ -255,7 +276,7 @@ class Handles:
             "format": FORMAT,
             "version": VERSION,
             "handles": [_handle_to_dict(h) for h in self.handles],
-            "options": {"rectify": self.options.rectify},
+            "options": {"rectify": self.options.rectify, "anchor": self.options.anchor},
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -455,6 +476,8 @@ def _validate_handle(h: Handle, where: str) -> None:
 def _validate_document(doc: Handles) -> None:
     if not isinstance(doc.options, Options) or doc.options.rectify not in ("all", "each"):
         raise HandlesError("options.rectify", f"expected 'all' or 'each', got {_describe(getattr(doc.options, 'rectify', None))}")
+    if doc.options.anchor is not None:
+        _number(doc.options.anchor, "options.anchor", *ANCHOR_RANGE)
     seen: dict[str, int] = {}
     for i, h in enumerate(doc.handles):
         _validate_handle(h, f"handles[{i}]")
@@ -484,12 +507,16 @@ def _parse_document(data: Any) -> Handles:
     if not isinstance(options, Mapping):
         raise HandlesError("options", f"expected an object, got {_describe(options)}")
     for key in options:
-        if key != "rectify":
-            raise HandlesError(f"options.{key}", "unknown option (allowed: rectify)")
+        if key not in ("rectify", "anchor"):
+            raise HandlesError(f"options.{key}", "unknown option (allowed: rectify, anchor)")
     rectify = options.get("rectify", "all")
     if rectify not in ("all", "each"):
         raise HandlesError("options.rectify", f"expected 'all' or 'each', got {_describe(rectify)}")
-    return Handles(tuple(_parse_handle(item, i) for i, item in enumerate(items)), Options(rectify=rectify))
+    # here null is a value: no still background (the paper's method); left out: the default
+    anchor = options.get("anchor", DEFAULT_ANCHOR)
+    if anchor is not None:
+        anchor = _number(anchor, "options.anchor", *ANCHOR_RANGE)
+    return Handles(tuple(_parse_handle(item, i) for i, item in enumerate(items)), Options(rectify=rectify, anchor=anchor))
 
 
 def _pair(p: Sequence[float]) -> list[float]:

@@ -8,9 +8,10 @@ blend of eq. (2) (:mod:`.blend`) and the resampling (:mod:`.warping`).
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -200,6 +201,37 @@ def _merge_duplicates(
     return unique, merged, problems
 
 
+#: ``Control.handle`` of the still background (``Options.anchor``): the identity map.
+BACKGROUND = -1
+#: A control's anchor distance grows by this many times the farthest its map moves one of its own points.
+ANCHOR_GROWTH = 1.0
+
+
+def _with_background(constraints: Constraints, vertices: NDArray[np.float64], anchor: float) -> tuple[Constraints, NDArray[np.int64]]:
+    """The constraints with the still background's control added, and the mesh vertices where it has weight 1.
+
+    A vertex is still when it lies farther than its anchor distance from every control's
+    prescribed points: ``anchor`` degrees plus :data:`ANCHOR_GROWTH` times the largest
+    distance the control's map moves one of them (a point dragged far, a line bent much,
+    reaches farther than a cage that holds still).
+    """
+    from scipy.spatial import cKDTree
+
+    owner = np.argmax(constraints.values, axis=1)
+    still = np.ones(len(vertices), dtype=bool)
+    for c in np.unique(owner):
+        points = constraints.points[owner == c]
+        moved = coords.angular_distance(
+            coords.xyz_to_lonlat(points), coords.xyz_to_lonlat(constraints.controls[c].moebius.inverse.apply_xyz(points))
+        )
+        reach = min(anchor + ANCHOR_GROWTH * float(np.max(moved)), 180.0)
+        distance, _ = cKDTree(points).query(vertices, distance_upper_bound=2.0 * math.sin(math.radians(reach) / 2.0))
+        still &= ~np.isfinite(distance)
+    background = Control(Moebius.identity(), BACKGROUND, "the still background")
+    values = np.hstack([constraints.values, np.zeros((len(constraints.values), 1))])
+    return replace(constraints, controls=(*constraints.controls, background), values=values), np.flatnonzero(still)
+
+
 def _inside_fixed_cages(handles: Handles) -> list[str]:
     """Warnings for handles that move something inside a cage that holds its inside still (the paper's Fig. 15)."""
     from .quality import inside_polygon
@@ -243,7 +275,7 @@ def _crossing_lines(constraints: Constraints) -> list[str]:
 def _fold_warning(handles: Handles, controls: tuple[Control, ...], pixel_weights: NDArray, area: float) -> str:
     """Name the handles whose weights are strong where the output folds, (pixels, k) weights."""
     strong = np.flatnonzero(pixel_weights.max(axis=0) >= 0.1)
-    involved = sorted({controls[j].handle for j in strong})
+    involved = sorted({controls[j].handle for j in strong} - {BACKGROUND})
     names = [f"handles[{i}] ({handles.handles[i].kind})" for i in involved]
     return (
         f"the warp folds over near {' and '.join(names)}: {100 * area:.3g}% of the sphere is shown turned over "
@@ -372,7 +404,8 @@ def warp(
     lap("constraints")
     maps = [c.moebius for c in constraints.controls]
     single = maps[0] if maps else Moebius.identity()
-    if all(m.isclose(single) for m in maps[1:]):
+    # one map for everything; with a still background only if that map is the identity
+    if all(m.isclose(single) for m in maps[1:]) and (handles.options.anchor is None or single.isclose(Moebius.identity())):
         out = warp_moebius(image, single, width=width, order=order).image
         inverse = grid_inverse(single.inverse)
         lap("resampling")
@@ -389,7 +422,15 @@ def warp(
     problems_before = _inside_fixed_cages(handles) + _crossing_lines(constraints)
     mesh = adaptive_mesh(constraints.points)
     lap("mesh")
+    still = np.empty(0, dtype=np.int64)
+    if handles.options.anchor is not None:
+        constraints, still = _with_background(constraints, mesh.vertices, handles.options.anchor)
+        maps.append(Moebius.identity())
     b, bc, problems = _merge_duplicates(mesh.sample_index, constraints.values, constraints.controls)
+    still = np.setdiff1d(still, b)
+    if len(still):  # weight 1 for the background there, 0 for every handle
+        b = np.concatenate([b, still])
+        bc = np.vstack([bc, np.tile(np.eye(bc.shape[1])[-1], (len(still), 1))])
     problems = problems_before + problems
     raw = _previous_weights(previous, mesh.vertices, mesh.faces, b, bc)
     if raw is None:

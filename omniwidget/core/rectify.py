@@ -185,7 +185,20 @@ def _slots(bones: Sequence[Bone]) -> tuple[NDArray, NDArray, int]:
     return var, known, n
 
 
-def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: int = 50) -> RectifySolution:
+def _along(points: NDArray[np.float64]) -> float:
+    """Where the middle control point lies along the chord of the other two: the parameter of its projection, in [0.2, 0.8].
+
+    ``points`` is (3, 2): start, middle, end in one unwrapped lon/lat frame.
+    """
+    chord = points[2] - points[0]
+    length = float(chord @ chord)
+    t = float((points[1] - points[0]) @ chord / length) if length > 0 else 0.5
+    return min(max(t, 0.2), 0.8)
+
+
+def solve_bones(
+    bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: int = 50, *, least_motion: bool = False
+) -> RectifySolution:
     """Solve Sec. 3.4's least squares for the free bones' output control points.
 
     Parameters
@@ -196,6 +209,13 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
         relative-position terms.
     samples : int
         Samples per bone in the relative-position terms (the paper's 50).
+    least_motion : bool
+        Straighten each line by moving it least (the still background's choice, see
+        :data:`LEAST_MOTION`): its middle goes to the point of the output chord at the
+        parameter where it lies along the input chord (not to the chord's middle), and it
+        too keeps its place with the endpoints' weight, so that the chord moves towards the
+        line and the correction is shared by all three control points. False: eqs. (9)-(10)
+        as the paper writes them.
 
     Returns
     -------
@@ -272,12 +292,13 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
         if not b.free:
             continue
         v, p = var[k], known[k]
-        rows.add(  # eq. (9): middle - (start + end) / 2
-            [(v[1:2], np.ones(1)), (v[0:1], np.full(1, -0.5)), (v[2:3], np.full(1, -0.5))],
-            (p[1] - (p[0] + p[2]) / 2)[None],
+        t = _along(p) if least_motion else 0.5
+        rows.add(  # eq. (9): middle - ((1 - t) start + t end), t = 1/2 in the paper
+            [(v[1:2], np.ones(1)), (v[0:1], np.full(1, t - 1.0)), (v[2:3], np.full(1, -t))],
+            (p[1] - (1.0 - t) * p[0] - t * p[2])[None],
             np.full(1, RECTIFY_WEIGHT),
         )
-        for s in (0, 2):  # eq. (10): endpoints stay
+        for s in (0, 1, 2) if least_motion else (0, 2):  # eq. (10): endpoints stay (and the middle, moving least)
             rows.add([(v[s : s + 1], np.ones(1))], np.zeros((1, 2)), np.full(1, KEEP_WEIGHT))
     a = sp.csr_matrix((np.concatenate(rows.val), (np.concatenate(rows.row), np.concatenate(rows.col))), shape=(rows.count, n))
     w = np.concatenate(rows.weight)
