@@ -62,7 +62,7 @@ from .core.constraints import SAMPLES
 from .core.draw import display_rgb, draw_polyline
 from .core.handles import CageHandle, Handles, LineHandle, PointHandle
 from .core.io import check_panorama
-from .core.pipeline import Result
+from .core.pipeline import BACKGROUND, Result
 
 if TYPE_CHECKING:  # pragma: no cover
     import pyvista
@@ -160,8 +160,9 @@ def handle_weights(result: Result) -> NDArray[np.float64]:
     -------
     ndarray of float64, shape (n_vertices, n_handles)
         Column ``i`` is handle ``i``'s weight at each mesh vertex, in [0, 1]; rows sum to 1
-        (to rounding). The controls are added in their order, so a handle with one control
-        has exactly its column.
+        (to rounding), or with a still background (``options.anchor``) to 1 minus its
+        weight, the last column of ``result.weights``. The controls are added in their
+        order, so a handle with one control has exactly its column.
 
     Raises
     ------
@@ -174,7 +175,8 @@ def handle_weights(result: Result) -> NDArray[np.float64]:
     weights = result.weights
     out = np.zeros((weights.shape[0], len(result.handles)), dtype=np.float64)
     for c, control in enumerate(result.controls):
-        out[:, control.handle] += weights[:, c]
+        if control.handle != BACKGROUND:
+            out[:, control.handle] += weights[:, c]
     return out
 
 

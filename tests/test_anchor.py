@@ -15,15 +15,13 @@ import pytest
 from omniwidget.core.handles import SUGGESTED_ANCHOR, CageHandle, Handles, LineHandle, Options, PointHandle
 from omniwidget.core.pipeline import BACKGROUND, warp
 from omniwidget.core.quality import cage_motion, straightness, summary
-from omniwidget.core.scenes import mark_lines, synthetic_room
+from omniwidget.core.scenes import LINED_ROOMS, lined_room, synthetic_room
 
 W = 2048
-ROOMS = [(1, 6), (2, 8), (3, 10), (4, 8), (5, 7)]
 
 
 def _room(seed: int, n: int):
-    scene = synthetic_room(W, size=(4.0 + seed % 2, 3.0, 3.0), camera=(0.3, -0.2, -1.0 + 0.1 * seed), yaw=17.0 + 11 * seed)
-    return scene, mark_lines(scene, n, seed=seed)
+    return lined_room(seed, n, W)
 
 
 def _warp(image, handles):
@@ -40,7 +38,7 @@ def _excess(result) -> float:
     )
 
 
-@pytest.mark.parametrize(("seed", "n"), ROOMS)
+@pytest.mark.parametrize(("seed", "n"), LINED_ROOMS)
 def test_a_still_background_keeps_the_room_where_it_was(seed, n):
     scene, lines = _room(seed, n)
     assert 6 <= len(lines) <= 10

@@ -599,3 +599,17 @@ def test_a_job_that_raises_does_not_stop_the_worker(caplog):
     worker.submit(lambda: done.append(1))
     assert worker.wait(10) and done == [1]
     assert "a bug" in caplog.text
+
+
+def test_the_quality_figures_of_the_result_on_screen_come_in_one_line(editor):
+    """Measured after the result is shown (not holding it up), then said in the status."""
+    editor.handles = doc({**WINDOW_TOP, "rectify": True}, {"kind": "point", "position": [90.0, 0.0], "target": [94.0, 2.0]})
+    status = editor.wait()
+    assert status["state"] == "idle"
+    import time
+
+    deadline = time.monotonic() + 30
+    while not editor.status.get("quality") and time.monotonic() < deadline:
+        time.sleep(0.05)
+    line = editor.status["quality"]
+    assert line == editor.preview_result.quality.line() and line.startswith("lines within ") and "folds 0%" in line, line

@@ -73,6 +73,20 @@ def test_handle_weights_sum_each_handles_controls(result, crossing):
     assert len(result.controls) == 7  # the cage: one control per vertex
 
 
+def test_handle_weights_leave_out_the_still_background(result):
+    from dataclasses import replace
+
+    from omniwidget.core.handles import Options
+    from omniwidget.core.pipeline import BACKGROUND
+
+    still = ow.warp(result.image, replace(result.handles, options=Options(anchor=5.0)))
+    assert still.controls[-1].handle == BACKGROUND
+    w = pane.handle_weights(still)
+    assert w.shape == (len(still.vertices), len(still.handles))
+    np.testing.assert_allclose(w.sum(axis=1) + still.weights[:, -1], 1.0, atol=1e-9)
+    assert (still.weights[:, -1] == 1).mean() > 0.2  # far from the handles the background alone
+
+
 def test_weights_mesh_has_one_array_per_handle_equal_to_the_weights(result):
     mesh = pane.weights_mesh(result)
     assert isinstance(mesh, pv.PolyData)

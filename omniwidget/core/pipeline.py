@@ -21,7 +21,7 @@ from . import coords
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .handles import CageHandle, Handles, LineHandle, PointHandle
 from .moebius import Moebius
-from .quality import FoldOver, fold_over
+from .quality import FoldOver, Summary, fold_over
 from .warping import (
     PAD,
     GridInverse,
@@ -158,6 +158,18 @@ class Result:
             step = m.inverse.apply_xyz(q) + (p - shown)
             q = m.apply_xyz(step / np.linalg.norm(step, axis=-1, keepdims=True))
         return coords.xyz_to_lonlat(q)
+
+    @cached_property
+    def quality(self) -> Summary:
+        """Every quality figure of this warp (:func:`omniwidget.core.quality.summary`), measured when first asked.
+
+        Straightness of each line, conformal distortion (mean and 99th percentile), fold-over,
+        tear, coverage, the mean displacement of the sphere and the motion inside fixed cages;
+        ``result.quality.line()`` says it in one line.
+        """
+        from .quality import summary
+
+        return summary(self)
 
     @cached_property
     def _inverse_map(self) -> NDArray[np.float64]:

@@ -625,6 +625,28 @@ class Summary:
             return math.nan
         return math.nan if any(math.isnan(v) for v in self.lines) else max(self.lines)
 
+    def line(self) -> str:
+        """The figures in one line of text, as the editor shows them.
+
+        Examples
+        --------
+        >>> Summary("bbw", (0.1, 0.25), 0.031, 0.42, 0.0, 0.3, 1.0, 0.12, None, 0.2, 2048).line()
+        'lines within 0.25 px · folds 0% · sphere shown 100% · moved 0.12° on average · distortion 0.031 (p99 0.42)'
+        """
+        parts = []
+        if self.lines:
+            worst = self.straightness
+            parts.append("a line is not shown" if math.isnan(worst) else f"lines within {worst:.2g} px")
+        parts += [
+            f"folds {100 * self.fold_over:.2g}%",
+            f"sphere shown {100 * self.coverage:.3g}%",
+            f"moved {self.displacement:.2g}° on average",
+            f"distortion {self.distortion_mean:.2g} (p99 {self.distortion_p99:.2g})",
+        ]
+        if self.cage_motion is not None:
+            parts.append(f"cages still to {self.cage_motion:.2g} px")
+        return " · ".join(parts)
+
     def as_dict(self) -> dict[str, Any]:
         """The figures as plain numbers (JSON-ready: NaN becomes None), with ``straightness`` the worst line.
 

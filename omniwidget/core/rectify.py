@@ -196,9 +196,7 @@ def _along(points: NDArray[np.float64]) -> float:
     return min(max(t, 0.2), 0.8)
 
 
-def solve_bones(
-    bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: int = 50, *, least_motion: bool = False
-) -> RectifySolution:
+def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: int = 50, *, least_motion: bool = False) -> RectifySolution:
     """Solve Sec. 3.4's least squares for the free bones' output control points.
 
     Parameters

@@ -42,6 +42,7 @@ from ._checks import whole_number
 
 __all__ = [
     "close_pair",
+    "lined_room",
     "mark_lines",
     "FACE_COLORS",
     "FACE_NAMES",
@@ -338,6 +339,31 @@ def mark_lines(
             picked.append(line)
             clouds.append(cloud)
     return picked
+
+
+#: The rooms of issue 9's figures (``lined_room``): seed and number of lines.
+LINED_ROOMS = ((1, 6), (2, 8), (3, 10), (4, 8), (5, 7))
+
+
+def lined_room(seed: int, lines: int, width: int = 2048) -> tuple[Scene, list[SceneLine]]:
+    """A room of its own shape and view for each seed, with ``lines`` of its edges marked (the still background's test rooms).
+
+    Parameters
+    ----------
+    seed : int
+        Picks the room's size, the camera's height and turn, and the lines (:func:`mark_lines`).
+    lines : int
+        How many lines to mark (fewer if the room has fewer suitable ones).
+    width : int
+        Of the panorama.
+
+    Returns
+    -------
+    scene : Scene
+    marked : list of SceneLine
+    """
+    scene = synthetic_room(width, size=(4.0 + seed % 2, 3.0, 3.0), camera=(0.3, -0.2, -1.0 + 0.1 * seed), yaw=17.0 + 11 * seed)
+    return scene, mark_lines(scene, lines, seed=seed)
 
 
 def close_pair(

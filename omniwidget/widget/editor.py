@@ -49,6 +49,8 @@ PREVIEW_WIDTH = 1024
 DISPLAY_WIDTH = 2048
 #: Edits kept for undo.
 HISTORY = 500
+#: Seconds a result stays on screen before its quality figures are measured (a drag may go on).
+QUALITY_DELAY = 0.3
 #: The autosave file's name ends so: ``room.jpg.omniwidget-autosave.json`` next to ``room.jpg``.
 AUTOSAVE_SUFFIX = ".omniwidget-autosave.json"
 #: Set to ``0`` (or ``off``, ``false``, ``no``) to turn autosave off where not asked for explicitly.
@@ -267,6 +269,12 @@ class Editor(anywidget.AnyWidget):
         status says what is wrong with the file, and the file is kept, renamed to
         ``<name>.bad`` at the first edit.
 
+    quality : bool
+        Measure each result's quality figures after it is shown (straightness, fold-over,
+        coverage, displacement, distortion: :attr:`omniwidget.Result.quality`) and show them
+        in one line under the image (``status["quality"]``); about 0.6 s of a core per
+        preview, in a thread of its own, skipped when a newer edit comes first.
+
     Attributes
     ----------
     handles : dict
@@ -328,6 +336,7 @@ class Editor(anywidget.AnyWidget):
         handles_path: str | os.PathLike[str] | None = None,
         height: int = 480,
         autosave: bool | str | os.PathLike[str] | None = None,
+        quality: bool = True,
     ) -> None:
         from ..core._checks import whole_number
 
@@ -348,6 +357,8 @@ class Editor(anywidget.AnyWidget):
         self._lock = threading.Lock()
         self._generation = 0
         self._worker = Latest("omniwidget-editor")
+        self._quality = Latest("omniwidget-editor-quality")
+        self._measure = bool(quality)
         self._undo: list[dict] = []
         self._redo: list[dict] = []
         self._restoring = False
@@ -545,7 +556,23 @@ class Editor(anywidget.AnyWidget):
                     "seconds": seconds,
                     "width": int(result.image.shape[1]),
                     "generation": generation,
+                    "quality": "",
                 }
+        if self._measure and result.weights is not None:
+            self._quality.submit(lambda: self._measure_quality(result, generation))
+
+    def _measure_quality(self, result: Any, generation: int) -> None:
+        """The quality figures of a result on screen, in a line of the status (measured after it is shown)."""
+        time.sleep(QUALITY_DELAY)  # a drag goes on: let the next edit's computation have the cores
+        if generation != self._generation:
+            return
+        try:
+            line = result.quality.line()
+        except Exception as exc:  # noqa: BLE001 - a figure that cannot be measured is said, not raised
+            line = f"could not measure the quality ({_exception_text(exc)})"
+        with self._lock:
+            if generation == self._generation:
+                self.status = {**self.status, "quality": line}
 
     def wait(self, timeout: float | None = 120.0) -> dict:
         """Block until the newest edit's result is shown (or failed); return :attr:`status`.

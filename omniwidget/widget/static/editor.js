@@ -553,6 +553,7 @@ function render({ model, el: host }) {
     message.textContent = parts.join(" · ");
     message.classList.toggle("ow-error", Boolean(s.error));
     message.title = (s.warnings || []).join("\n");
+    if (s.quality && s.state === "idle") message.append(el("div", { class: "ow-quality" }, s.quality));
     for (const w of s.warnings || []) {
       message.append(el("div", { class: "ow-warning" }, `⚠ ${w}`));
     }
