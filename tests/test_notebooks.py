@@ -79,3 +79,17 @@ def test_notebook_04_table_bbw_is_smooth_piecewise_tears_gaussian_bends(executed
     assert close["bbw"]["fold_over"] == 0 and close["bbw"]["tear"] < 1.0, close["bbw"]
     assert close["gaussian_2017"]["straightness"] > 4 * close["bbw"]["straightness"] + 0.1, close
     assert close["piecewise_constant"]["tear"] > 10, close["piecewise_constant"]
+
+
+def test_notebook_04_still_background_figures_are_the_ones_its_text_gives(executed):
+    """Issue 9: the section compares the paper (anchor: null) with the still background; its prose quotes the printed figures."""
+    nb = executed(next(p for p in NOTEBOOKS if p.name.startswith("04_")))
+    cell = next(c for c in nb.cells if "still-background" in c.get("metadata", {}).get("tags", []))
+    text = "".join(o.get("text", "") for o in cell.outputs if o.output_type == "stream")
+    paper, still = (line.strip() for line in text.splitlines()[1::2])
+    for quoted in ("folds 2.5%", "moved 14° on average", "distortion 8.4"):
+        assert quoted in paper, paper
+    for quoted in ("folds 0%", "moved 0.1° on average", "distortion 0.035"):
+        assert quoted in still, still
+    prose = next(c.source for c in nb.cells if c.cell_type == "markdown" and c.source.startswith("## Beyond the paper"))
+    assert all(figure in prose for figure in ("2.5%", "14°", "0.1°", "0.035"))
