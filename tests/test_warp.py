@@ -3,7 +3,7 @@ import pytest
 
 from omniwidget.core import coords
 from omniwidget.core.errors import ImageError
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, PointHandle
+from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
 from omniwidget.core.moebius import Moebius
 from omniwidget.core.pipeline import warp
 from omniwidget.core.quality import local_jacobians, straightness
@@ -12,6 +12,11 @@ from omniwidget.core.warping import grid_inverse, inverse_lonlat, pad_panorama, 
 from .conftest import offset
 
 W = 2048
+
+
+def paper(handles) -> Handles:
+    """A document warped by the paper's method: one handle, one Möbius map of the whole sphere (no still background)."""
+    return Handles(handles, Options(anchor=None))
 
 
 def smooth_field(xyz: np.ndarray) -> np.ndarray:
@@ -49,7 +54,7 @@ def map_at(lonlat_map: np.ndarray, lonlat) -> np.ndarray:
 def test_empty_handles_give_the_input_back_bit_for_bit(rng, dtype, channels):
     shape = (32, 64) if channels is None else (32, 64, channels)
     image = (rng.random(shape) * (255 if dtype == np.uint8 else 65535 if dtype == np.uint16 else 1)).astype(dtype)
-    for doc in (Handles(), Handles([CageHandle(((0.0, 0.0), (10.0, 0.0), (5.0, 5.0)))])):
+    for doc in (Handles(), paper([CageHandle(((0.0, 0.0), (10.0, 0.0), (5.0, 5.0)))])):
         out = warp(image, doc).image
         assert out.dtype == image.dtype and out.shape == image.shape
         assert out.tobytes() == image.tobytes() and out is not image
@@ -104,7 +109,7 @@ def test_padding_continues_over_the_poles(rng):
     ("position", "target"), [([10.0, 20.0], [31.3, -8.7]), ([175.0, 5.0], [-178.2, 12.4]), ([-60.0, 70.0], [-75.5, 62.1])]
 )
 def test_point_handle_output_pixel_at_target_shows_position(position, target):
-    doc = Handles([PointHandle(tuple(position), tuple(target))])
+    doc = paper([PointHandle(tuple(position), tuple(target))])
     result = warp(np.zeros((W // 2, W), np.uint8), doc)
     inv = inverse_lonlat(grid_inverse(result.moebius.inverse), W)
     shown = map_at(inv, target)
@@ -118,7 +123,7 @@ def test_point_handle_moves_a_real_dot_to_its_target():
     grid = coords.lonlat_to_xyz(np.stack(np.meshgrid(lon, lat), axis=-1))
     dist = np.degrees(np.arccos(np.clip(grid @ coords.lonlat_to_xyz(position), -1, 1)))
     image = (np.exp(-0.5 * (dist / 0.6) ** 2)).astype(np.float32)
-    out = warp(image, Handles([PointHandle(tuple(position), tuple(target))])).image.astype(float)
+    out = warp(image, paper([PointHandle(tuple(position), tuple(target))])).image.astype(float)
     xyz = np.sum(out[..., None] * grid * np.cos(np.radians(lat))[:, None, None], axis=(0, 1))  # centroid on the sphere
     assert coords.angular_distance(coords.xyz_to_lonlat(xyz), target) * W / 360 < 0.25
 
@@ -126,7 +131,7 @@ def test_point_handle_moves_a_real_dot_to_its_target():
 @pytest.mark.parametrize(("scale", "rotation"), [(2.0, 0.0), (0.6, 0.0), (1.0, 30.0), (3.0, -75.0)])
 def test_zoom_and_rotation_at_the_target_measured_from_the_map(scale, rotation):
     position, target = [15.0, 25.0], [22.0, 18.0]
-    doc = Handles([PointHandle(tuple(position), tuple(target), rotation=rotation, scale=scale)])
+    doc = paper([PointHandle(tuple(position), tuple(target), rotation=rotation, scale=scale)])
     result = warp(np.zeros((W // 2, W), np.uint8), doc)
     inv = inverse_lonlat(grid_inverse(result.moebius.inverse), W)
     x, y = np.round(coords.lonlat_to_px(target, W)).astype(int)
@@ -174,7 +179,7 @@ def test_rectified_line_seen_in_the_warped_image(rng):
     normal /= np.linalg.norm(normal)
     off_plane = np.degrees(np.abs(np.arcsin(np.clip(grid @ normal, -1, 1)))) * W / 360  # pixels from the great circle
     image = np.where(off_plane < 1.0, 0, 255).astype(np.uint8)
-    out = warp(image, Handles([LineHandle(tuple(start), tuple(end))])).image
+    out = warp(image, paper([LineHandle(tuple(start), tuple(end))])).image
     a, b = coords.lonlat_to_px(start, W), coords.lonlat_to_px(end, W)
     t = np.linspace(0.08, 0.92, 300)
     chord = a + t[:, None] * (b - a)
@@ -193,7 +198,7 @@ def test_line_across_the_seam_is_rectified():
 
 def test_output_width_and_order_are_chosen_freely():
     image = (render_field(256) * 255).astype(np.uint8)
-    doc = Handles([PointHandle((0.0, 0.0), (5.0, 0.0))])
+    doc = paper([PointHandle((0.0, 0.0), (5.0, 0.0))])
     for width in (64, 256, 1000):
         for order in ("nearest", "bilinear", "bicubic"):
             out = warp(image, doc, width=width, order=order).image
@@ -217,7 +222,7 @@ def test_bad_images_are_refused():
 
 def test_identical_maps_are_applied_exactly_without_a_mesh():
     image = np.zeros((16, 32), np.uint8)
-    same = Handles([PointHandle((0.0, 0.0), (5.0, 0.0)), PointHandle((0.0, 0.0), (5.0, 0.0))])
+    same = paper([PointHandle((0.0, 0.0), (5.0, 0.0)), PointHandle((0.0, 0.0), (5.0, 0.0))])
     result = warp(image, same)
     assert result.moebius.isclose(same.handles[0].moebius()) and result.weights is None
 
@@ -248,7 +253,7 @@ def test_room_lines_rectified_one_at_a_time_are_straight_in_the_image():
     assert len(pieces) >= 6
     gray = scene.image.mean(axis=2)
     for piece in pieces[:6]:
-        doc = Handles([LineHandle(piece.start, piece.end)])
+        doc = paper([LineHandle(piece.start, piece.end)])
         result = warp(scene.image, doc)
         curve = result.moebius(coords.geodesic(piece.start, piece.end, np.linspace(0, 1, 400)))
         assert straightness(curve, W) < 0.5
