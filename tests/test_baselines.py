@@ -35,6 +35,9 @@ KEEP_CLEAR = ((np.array((*CAGE, (-135.0, -5.0))), 12.0), (np.array([POINT.positi
 
 METHODS = {"BBW": warp, "piecewise": piecewise_constant, "gaussian": gaussian_2017, "single": single_moebius}
 
+#: The baselines are the paper's alternatives: compared with the paper's BBW, without a still background.
+PAPER = Options(anchor=None)
+
 
 def _figures(result) -> dict:
     """Fold-over (% of the sphere), tear (px) and the worst line's straightness (px, best fit), at W."""
@@ -65,7 +68,7 @@ def room():
     rng = np.random.default_rng(1)
     scene = synthetic_room(W, size=(4.0, 3.0, 3.0), camera=(0.3, -0.2, -1.0), yaw=float(rng.uniform(0, 90)))
     lines = mark_lines(scene, 6, seed=1, keep_clear=KEEP_CLEAR, min_bend=5.0 * W / 2048)
-    doc = Handles((*(LineHandle(line.start, line.end) for line in lines), CageHandle(CAGE), POINT), Options(rectify="each"))
+    doc = Handles((*(LineHandle(line.start, line.end) for line in lines), CageHandle(CAGE), POINT), Options(rectify="each", anchor=None))
     return scene, doc, *_run_all(scene.image, doc)
 
 
@@ -74,7 +77,7 @@ def close_pair():
     """Two parallel grid lines on one wall, about 7-9 degrees apart, each rectified by its own map."""
     scene = synthetic_room(W, size=(4.0, 3.0, 3.0), camera=(0.3, -0.2, -1.0), yaw=30.0, grid=0.5)
     a, b = scenes.close_pair(scene)
-    doc = Handles((LineHandle(a.start, a.end), LineHandle(b.start, b.end)), Options(rectify="each"))
+    doc = Handles((LineHandle(a.start, a.end), LineHandle(b.start, b.end)), Options(rectify="each", anchor=None))
     return scene, doc, *_run_all(scene.image, doc)
 
 
@@ -140,7 +143,7 @@ def test_compare_measures_every_method_as_the_tests_do(room):
 
 def test_compare_refuses_unknown_methods():
     image = synthetic_room(64).image
-    doc = Handles((LineHandle((-4.0, 37.5), (68.0, 36.5)),))
+    doc = Handles((LineHandle((-4.0, 37.5), (68.0, 36.5)),), PAPER)
     with pytest.raises(ValueError, match="unknown: 'bbw2'"):
         compare(image, doc, ("bbw", "bbw2"))
     with pytest.raises(ValueError, match="non-empty"):
@@ -175,7 +178,7 @@ def test_baselines_are_results_whose_points_agree_with_their_map(room, name):
 
 def test_single_moebius_of_one_handle_is_warp_bit_for_bit():
     scene = synthetic_room(W)
-    doc = Handles((LineHandle((-4.0, 37.5), (68.0, 36.5)),))
+    doc = Handles((LineHandle((-4.0, 37.5), (68.0, 36.5)),), PAPER)
     ours, theirs = single_moebius(scene.image, doc), warp(scene.image, doc)
     assert ours.image.tobytes() == theirs.image.tobytes()
     assert np.array_equal(ours.inverse_map(np.float64), theirs.inverse_map(np.float64))
@@ -198,7 +201,7 @@ def test_single_moebius_uses_the_chosen_handles_map(room):
 
 def test_piecewise_constant_with_one_handle_is_its_map():
     scene = synthetic_room(W)
-    doc = Handles((LineHandle((-4.0, 37.5), (68.0, 36.5)),))
+    doc = Handles((LineHandle((-4.0, 37.5), (68.0, 36.5)),), PAPER)
     ours, theirs = piecewise_constant(scene.image, doc), warp(scene.image, doc)
     diff = ours.inverse_map(np.float64) - theirs.inverse_map(np.float64)
     diff[..., 0] = coords.wrap_lon(diff[..., 0])
@@ -226,7 +229,7 @@ def test_gaussian_2017_is_each_map_on_its_own_handle_and_identity_far_away():
     scene = synthetic_room(W)
     line = LineHandle((-4.0, 37.5), (68.0, 36.5))
     point = PointHandle((-120.0, -20.0), target=(-115.0, -18.0), scale=1.2)
-    result = gaussian_2017(scene.image, Handles((line, point)))
+    result = gaussian_2017(scene.image, Handles((line, point), PAPER))
     samples = result.constraints.lines[0][1]
     m = result.controls[0].moebius
     np.testing.assert_allclose(result.inverse_points(m(samples)), samples, atol=1e-9)  # its weight is 1 there, the point's 0
@@ -245,7 +248,7 @@ def test_gaussian_2017_is_each_map_on_its_own_handle_and_identity_far_away():
 
 def test_gaussian_2017_radius_sets_the_reach():
     scene = synthetic_room(W)
-    doc = Handles((PointHandle((0.0, 0.0), target=(5.0, 0.0)),))
+    doc = Handles((PointHandle((0.0, 0.0), target=(5.0, 0.0)),), PAPER)
     narrow, wide = gaussian_2017(scene.image, doc, radius=5.0), gaussian_2017(scene.image, doc, radius=40.0)
     probe = [[25.0, 0.0]]
     assert abs(narrow.inverse_points(probe)[0, 0] - 25.0) < 1e-6 and abs(wide.inverse_points(probe)[0, 0] - 25.0) > 1.0
@@ -304,7 +307,7 @@ def test_perspective_stretches_towards_the_edges():
 
 def test_baselines_refuse_bad_arguments():
     image = synthetic_room(64).image
-    doc = Handles((LineHandle((-4.0, 37.5), (68.0, 36.5)), PointHandle((10.0, 10.0))))
+    doc = Handles((LineHandle((-4.0, 37.5), (68.0, 36.5)), PointHandle((10.0, 10.0))), PAPER)
     with pytest.raises(TypeError, match="handles must be a Handles document"):
         piecewise_constant(image, {"handles": []})
     with pytest.raises(ValueError, match=r"handle must be the index of one of the 2 handles \(0 to 1\), got 2"):
@@ -315,7 +318,7 @@ def test_baselines_refuse_bad_arguments():
         single_moebius(image, doc, handle=True)
     for method in (single_moebius, piecewise_constant, gaussian_2017):
         with pytest.raises(ValueError, match="handles has no handles"):
-            method(image, Handles(()))
+            method(image, Handles((), PAPER))
         with pytest.raises(ValueError, match="width must be an even integer of at least 2, got 63"):
             method(image, doc, width=63)
         with pytest.raises(ValueError, match="order must be one of"):
@@ -353,7 +356,7 @@ def test_compare_without_lines_gives_strict_json():
     """No line: straightness is NaN in the summary, None (null) in the JSON a notebook saves."""
     import json
 
-    doc = Handles((PointHandle((0.0, 0.0), target=(5.0, 0.0)), PointHandle((90.0, 0.0), target=(92.0, 3.0))))
+    doc = Handles((PointHandle((0.0, 0.0), target=(5.0, 0.0)), PointHandle((90.0, 0.0), target=(92.0, 3.0))), PAPER)
     table = compare(synthetic_room(128).image, doc, ("bbw", "gaussian_2017"))
     assert np.isnan(table["bbw"].straightness) and table["bbw"].lines == ()
     figures = json.loads(json.dumps(table._repr_mimebundle_()["application/json"], allow_nan=False))

@@ -26,7 +26,9 @@ def room():
     lines = mark_lines(scene, 8, seed=3, min_bend=5.0 * W / 2048)
     cage = CageHandle(((-150.0, -20.0), (-120.0, -20.0), (-120.0, 10.0), (-150.0, 10.0)))
     point = PointHandle((-60.0, -30.0), target=(-52.0, -26.0), scale=1.3, rotation=20.0)
-    doc = Handles((*(LineHandle(line.start, line.end) for line in lines), cage, point), Options(rectify="all"))
+    doc = Handles(
+        (*(LineHandle(line.start, line.end) for line in lines), cage, point), Options(rectify="all", anchor=None)
+    )  # the paper: its far field folds
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = warp(scene.image, doc)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from omniwidget.core import coords
-from omniwidget.core.handles import LineHandle
+from omniwidget.core.handles import LineHandle, Options
 from omniwidget.core.moebius import Moebius
 from omniwidget.core.quality import (
     cage_motion,
@@ -201,7 +201,7 @@ def test_summary_of_a_warp_is_its_figures_one_by_one():
     width = 256
     line = LineHandle((-4.0, 37.5), (68.0, 36.5))
     cage = CageHandle(((-150.0, -20.0), (-120.0, -20.0), (-120.0, 10.0), (-150.0, 10.0)))
-    doc = Handles((line, cage, PointHandle((100.0, -30.0), target=(104.0, -28.0))))
+    doc = Handles((line, cage, PointHandle((100.0, -30.0), target=(104.0, -28.0))), Options(anchor=None))
     result = warp(synthetic_room(width).image, doc, warn=False)
     s = summary(result)
     m = result.inverse_map(np.float64)

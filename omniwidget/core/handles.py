@@ -50,12 +50,10 @@ __all__ = [
 
 FORMAT = "omniwidget.handles"
 VERSION = 1
-#: ``options.anchor``'s default: None, the paper's method, until the still background meets all
-#: of its figures (see the README's "A still background"); :data:`SUGGESTED_ANCHOR` is the
-#: measured best distance.
-DEFAULT_ANCHOR: float | None = None
-#: The anchor distance (degrees) that measured best on rooms of 6 to 10 lines.
+#: The anchor distance (degrees) that measured best on rooms of 6 to 10 lines (the README's "A still background").
 SUGGESTED_ANCHOR = 5.0
+#: ``options.anchor``'s default: the still background at :data:`SUGGESTED_ANCHOR` (None: the paper's method).
+DEFAULT_ANCHOR: float | None = SUGGESTED_ANCHOR
 #: The range ``options.anchor`` may take, degrees.
 ANCHOR_RANGE = (1.0, 180.0)
 #: Angular distance (radians) from a point handle's centre to its arrow tips, the authors' 0.3 rad.
@@ -229,8 +227,8 @@ class Options:
         The still background: the sphere farther than this many degrees from every handle
         keeps its place (an identity map whose weight is 1 there; see
         :mod:`omniwidget.core.pipeline`). The distance grows with a handle's size. ``None``
-        (``"anchor": null``, the default for now): no background map, the paper's method
-        exactly. :data:`SUGGESTED_ANCHOR` (5) measured best on rooms of lines.
+        (``"anchor": null``): no background map, the paper's method exactly. The default,
+        :data:`SUGGESTED_ANCHOR` (5), measured best on rooms of lines.
     """
 
     rectify: Literal["all", "each"] = "all"

@@ -55,6 +55,9 @@ __all__ = [
 
 #: Eq. (9): weight of a rectified line's midpoint on the middle of its endpoints.
 RECTIFY_WEIGHT = 100.0
+#: With ``least_motion`` the middle keeps its place too, against eq. (9): that weight is
+#: then this many times larger, so that the line stays straight to about 1e-6 degrees.
+LEAST_MOTION_STIFFNESS = 1e4
 #: Eq. (10): weight of each solved endpoint staying where it was.
 KEEP_WEIGHT = 0.3
 #: Eq. (8): the relative-position weight at distance 0.
@@ -294,7 +297,7 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
         rows.add(  # eq. (9): middle - ((1 - t) start + t end), t = 1/2 in the paper
             [(v[1:2], np.ones(1)), (v[0:1], np.full(1, t - 1.0)), (v[2:3], np.full(1, -t))],
             (p[1] - (1.0 - t) * p[0] - t * p[2])[None],
-            np.full(1, RECTIFY_WEIGHT),
+            np.full(1, RECTIFY_WEIGHT * (LEAST_MOTION_STIFFNESS if least_motion else 1.0)),
         )
         for s in (0, 1, 2) if least_motion else (0, 2):  # eq. (10): endpoints stay (and the middle, moving least)
             rows.add([(v[s : s + 1], np.ones(1))], np.zeros((1, 2)), np.full(1, KEEP_WEIGHT))
