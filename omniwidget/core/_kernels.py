@@ -348,6 +348,7 @@ def walk_blend(
     width: int,
     src_width: int,
     walk: int = WALK_STEPS,
+    neighbours: NDArray[np.int32] | None = None,
 ) -> tuple[NDArray[np.float32], NDArray[np.int32], NDArray[np.float64]]:
     """:func:`blend_coordinates` on a whole grid, each pixel's face found by walking from its neighbour's.
 
@@ -368,6 +369,8 @@ def walk_blend(
         Output width (even); the height is ``width / 2``.
     walk : int
         Faces one pixel's walk may cross.
+    neighbours : ndarray of int32, shape (m, 3), optional
+        :func:`omniwidget.core.locate.face_neighbours` of ``faces``, when the caller has it.
 
     Returns
     -------
@@ -384,7 +387,7 @@ def walk_blend(
     corner = [v[f[:, k]] for k in range(3)]
     planes = np.ascontiguousarray(np.stack([np.cross(corner[k], corner[(k + 1) % 3]) for k in range(3)], axis=1))
     slack = EDGE_TOLERANCE * np.linalg.norm(planes, axis=2)
-    neighbours = face_neighbours(f)
+    neighbours = face_neighbours(f) if neighbours is None else neighbours
     mesh = _mesh_args(planes, f, weights, inverses)
     height = width // 2
     grid = _grid_args(width, src_width)
@@ -413,6 +416,7 @@ def blend_blocks(
     src_width: int,
     out: NDArray[np.float32],
     walk: int = WALK_STEPS,
+    neighbours: NDArray[np.int32] | None = None,
 ) -> NDArray[np.bool_]:
     """:func:`blend_coordinates` in chosen blocks of output pixels, located from their samples' faces; written into ``out``.
 
@@ -431,6 +435,8 @@ def blend_blocks(
     walk : int
         Each pixel is walked to its face across the mesh's edges (:func:`walk_blend`), from
         its neighbour's face, through at most this many faces.
+    neighbours : ndarray of int32, shape (m, 3), optional
+        :func:`omniwidget.core.locate.face_neighbours` of ``faces``, when the caller has it.
 
     Returns
     -------
@@ -443,7 +449,7 @@ def blend_blocks(
     slack = EDGE_TOLERANCE * np.linalg.norm(planes, axis=2)  # what locate tolerates, per edge plane
     mesh = _mesh_args(planes, faces, weights, inverses)
     grid = _grid_args(out.shape[1], src_width)
-    neighbours = face_neighbours(mesh[1])
+    neighbours = face_neighbours(mesh[1]) if neighbours is None else neighbours
     missed = np.zeros(out.shape[:2], dtype=bool)
     cell_r, cell_c = np.nonzero(cells)
     samples = np.ascontiguousarray(samples, np.int32)

@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import _kernels, coords
+from .locate import face_neighbours
 from .moebius import Moebius
 from .warping import PAD
 
@@ -155,7 +156,8 @@ def sampled_coordinates(
     if step < 2 or width % (2 * step):
         raise ValueError(f"step must be at least 2 and divide the grid evenly: width {width}, step {step}")
     coarse_width = width // step
-    samples, face, planes = _kernels.walk_blend(vertices, faces, weights, inverses, coarse_width, src_width)
+    neighbours = face_neighbours(faces)  # the samples' walk and the exact blocks' walks share them
+    samples, face, planes = _kernels.walk_blend(vertices, faces, weights, inverses, coarse_width, src_width, neighbours=neighbours)
     per_degree = src_width / 360.0
     lon_c, lat_c = coords.grid_lonlat(coarse_width)
     shift = np.empty_like(samples)  # displacement from where each sample is shown, source pixels
@@ -182,7 +184,7 @@ def sampled_coordinates(
     exact[0] = exact[-1] = True  # and the first and last rows of samples, whose blocks reach towards the poles
     out = np.empty((width // 2, width, 2), np.float32)
     _kernels.interpolate_shift(shift, exact, src_width, out)
-    missed = _kernels.blend_blocks(exact, face, planes, faces, weights, inverses, src_width, out)
+    missed = _kernels.blend_blocks(exact, face, planes, faces, weights, inverses, src_width, out, neighbours=neighbours)
     if missed.any():  # a pixel in none of the faces around its sample: located the long way
         from .blend import blended_points
 
