@@ -7,6 +7,7 @@ from omniwidget.core import coords
 from omniwidget.core.handles import LineHandle, Options
 from omniwidget.core.moebius import Moebius
 from omniwidget.core.quality import (
+    FAR_FIELD,
     cage_motion,
     conformal_distortion,
     coverage,
@@ -215,3 +216,22 @@ def test_summary_of_a_warp_is_its_figures_one_by_one():
     assert s.seconds == pytest.approx(sum(result.timings.values()))
     as_dict = s.as_dict()
     assert as_dict["straightness"] == s.straightness and as_dict["lines"] == list(s.lines)
+    # the far field: the same figures where every output pixel is farther than 30° from every handle
+    from scipy.spatial import cKDTree
+
+    lon, lat = coords.grid_lonlat(width)
+    grid = np.stack(np.meshgrid(lon, lat), axis=-1)
+    chord, _ = cKDTree(result.constraints.points).query(coords.lonlat_to_xyz(grid).reshape(-1, 3))
+    far = (np.degrees(2 * np.arcsin(chord / 2)) > FAR_FIELD).reshape(grid.shape[:2])
+    area = np.cos(np.radians(grid[..., 1]))
+    moved = coords.angular_distance(m, grid)
+    assert s.far.distance == FAR_FIELD and s.far.share == pytest.approx(np.sum(far * area) / np.sum(area), rel=1e-9)
+    assert s.far.displacement == pytest.approx(np.sum(moved * far * area) / np.sum(far * area), rel=1e-9)
+    assert s.far.displacement > 1.0  # the paper's method: the far field swings with the line and the point
+    inside = far & (np.abs(grid[..., 1]) <= 80) & np.isfinite(conformal_distortion(m).per_pixel)
+    per_pixel = conformal_distortion(m).per_pixel
+    assert s.far.distortion_mean == pytest.approx(np.sum(per_pixel[inside] * area[inside]) / np.sum(area[inside]), rel=1e-9)
+    assert as_dict["far"]["displacement"] == s.far.displacement and "far from the handles moved" in s.line()
+    still = summary(warp(synthetic_room(width).image, Handles(doc.handles, Options()), warn=False))
+    assert still.far.displacement < 1e-9 and still.far.fold_over == 0  # the still background holds it
+    assert "far from the handles still" in still.line()

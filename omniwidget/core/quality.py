@@ -12,6 +12,7 @@ An *inverse map* is what every warp in omniwidget computes: for each output pixe
 - :func:`cage_motion`: how far the inside of a fixed cage moved;
 - :func:`tear`: the largest jump of the map between neighbouring output pixels;
 - :func:`displacement`: how far the map moves the sphere, on average;
+- :func:`far_field`: the same figures on the part of the sphere far from every handle;
 - :func:`summary`: all of them for one warp (a :class:`~omniwidget.Result`), as a :class:`Summary`.
 
 Use float64 maps: float32 holds only about 1e-4 of a pixel step.
@@ -29,15 +30,22 @@ from numpy.typing import ArrayLike, NDArray
 from . import coords
 from ._checks import whole_number
 
+#: The far field: the output sphere farther than this many degrees from every handle.
+FAR_FIELD = 30.0
+
 __all__ = [
+    "FAR_FIELD",
     "Distortion",
+    "FarField",
     "FoldOver",
     "Summary",
     "cage_motion",
     "conformal_distortion",
     "coverage",
     "inside_polygon",
+    "near_mask",
     "displacement",
+    "far_field",
     "fold_over",
     "forward_points",
     "line_straightness",
@@ -204,16 +212,24 @@ def conformal_distortion(inverse_map: ArrayLike, max_abs_lat: float = 80.0) -> D
     if not 0 < max_abs_lat <= 90:
         raise ValueError(f"max_abs_lat must be in (0, 90] degrees, got {max_abs_lat!r}")
     sv = np.linalg.svd(local_jacobians(inverse_map), compute_uv=False)
-    ratio = sv[..., 0] / sv[..., 1] - 1.0
-    height, width = ratio.shape[0] + 2, ratio.shape[1]
+    per_pixel = np.full((sv.shape[0] + 2, sv.shape[1]), np.nan)
+    per_pixel[1:-1] = sv[..., 0] / sv[..., 1] - 1.0
+    mean, p99 = _distortion_figures(per_pixel, np.ones(per_pixel.shape, dtype=bool), max_abs_lat)
+    return Distortion(mean, p99, per_pixel, float(max_abs_lat))
+
+
+def _distortion_figures(per_pixel: NDArray[np.float64], where: NDArray[np.bool_], max_abs_lat: float) -> tuple[float, float]:
+    """Area-weighted mean and 99th percentile of ``per_pixel`` where ``where``, within ``max_abs_lat`` (NaN if nowhere)."""
+    height, width = per_pixel.shape
     _, lat = coords.grid_lonlat(width)
-    rows = np.flatnonzero(np.abs(lat[1:-1]) <= max_abs_lat)
-    inside = ratio[rows]
-    area = np.broadcast_to(_area(height)[1:-1][rows, None], inside.shape)
-    per_pixel = np.full((height, width), np.nan)
-    per_pixel[1:-1] = ratio
-    mean = float(np.sum(inside * area) / np.sum(area))
-    return Distortion(mean, _weighted_quantile(inside, area, 0.99), per_pixel, float(max_abs_lat))
+    rows = np.abs(lat) <= max_abs_lat
+    rows[[0, -1]] = False  # no central difference there
+    use = where & rows[:, None]
+    if not use.any():
+        return math.nan, math.nan
+    values = per_pixel[use]
+    area = np.broadcast_to(_area(height)[:, None], per_pixel.shape)[use]
+    return float(np.sum(values * area) / np.sum(area)), _weighted_quantile(values, area, 0.99)
 
 
 @dataclass(frozen=True, eq=False)
@@ -568,9 +584,142 @@ def displacement(inverse_map: ArrayLike) -> float:
         In degrees; 0 for the identity.
     """
     m = _check_map(inverse_map)
+    return float(np.sum(_moved(m) * _area(m.shape[0])[:, None]))
+
+
+def _moved(m: NDArray[np.floating]) -> NDArray[np.float64]:
+    """Per output pixel, degrees from it to the input position it shows, (H, W)."""
     lon, lat = coords.grid_lonlat(m.shape[1])
-    moved = coords.angular_distance(m, np.stack(np.meshgrid(lon, lat), axis=-1))
-    return float(np.sum(moved * _area(m.shape[0])[:, None]))
+    return coords.angular_distance(m, np.stack(np.meshgrid(lon, lat), axis=-1))
+
+
+def near_mask(lonlat: ArrayLike, radius: float, width: int) -> NDArray[np.bool_]:
+    """The pixels of a ``width x width/2`` grid within ``radius`` degrees of any of some points.
+
+    Parameters
+    ----------
+    lonlat : array_like, shape (n, 2)
+        Points ``[lon, lat]`` in degrees.
+    radius : float
+        Degrees, 0 to 180.
+    width : int
+        Grid width (even).
+
+    Returns
+    -------
+    ndarray of bool, shape (width / 2, width)
+        Exact at pixel centres: each point covers, on each row, the longitudes within
+        ``radius`` of it, an interval painted in one pass (no per-pixel search).
+    """
+    points = np.asarray(lonlat, dtype=np.float64).reshape(-1, 2) if np.size(lonlat) else np.empty((0, 2))
+    if not np.all(np.isfinite(points)):
+        raise ValueError("the points must be finite [lon, lat] pairs")
+    if not 0 <= radius <= 180:
+        raise ValueError(f"radius must be in [0, 180] degrees, got {radius!r}")
+    _, lat = coords.grid_lonlat(width)
+    height, step = width // 2, 360.0 / width
+    phi, phi_p = np.radians(lat)[:, None], np.radians(points[:, 1])[None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = (math.cos(math.radians(radius)) - np.sin(phi) * np.sin(phi_p)) / (np.cos(phi) * np.cos(phi_p))
+    c = np.nan_to_num(c, nan=2.0, posinf=2.0, neginf=-2.0)  # a point on a pole: covers whole rows or none
+    row, col = np.nonzero(c <= 1.0)
+    half = np.degrees(np.arccos(np.clip(c[row, col], -1.0, 1.0)))
+    centre = (points[col, 0] + 180.0) / step - 0.5  # in pixel columns
+    first = np.ceil(centre - half / step).astype(np.int64)
+    last = np.floor(centre + half / step).astype(np.int64)
+    whole = (last - first + 1 >= width) | (c[row, col] <= -1.0)
+    some = whole | (last >= first)  # an interval narrower than a pixel may hold no pixel centre
+    row, first, last, whole = row[some], first[some], last[some], whole[some]
+    mask = np.zeros((height, width + 1), dtype=np.int64)
+    np.add.at(mask, (row[whole], 0), 1)
+    np.add.at(mask, (row[whole], width), -1)
+    row, first, last = row[~whole], first[~whole], last[~whole]
+    first_w, last_w = np.mod(first, width), np.mod(last, width)
+    wraps = first_w > last_w  # the interval crosses the ±180° seam: two pieces
+    np.add.at(mask, (row, first_w), 1)
+    np.add.at(mask, (row, np.where(wraps, width, last_w + 1)), -1)
+    np.add.at(mask, (row[wraps], 0), 1)
+    np.add.at(mask, (row[wraps], last_w[wraps] + 1), -1)
+    return np.cumsum(mask, axis=1)[:, :width] > 0
+
+
+@dataclass(frozen=True)
+class FarField:
+    """Figures of the output sphere far from every handle (:func:`far_field`).
+
+    Attributes
+    ----------
+    distance : float
+        Degrees from every handle's output position: the far field begins there.
+    share : float
+        Its share of the sphere, 0 to 1.
+    displacement : float
+        Mean distance its content moved, degrees (as :func:`displacement`).
+    distortion_mean, distortion_p99 : float
+        Conformal distortion there, within ±80° (as :func:`conformal_distortion`); NaN if
+        the far field has no such pixel.
+    fold_over : float
+        Share of the far field turned over, 0 to 1.
+    """
+
+    distance: float
+    share: float
+    displacement: float
+    distortion_mean: float
+    distortion_p99: float
+    fold_over: float
+
+
+def far_field(
+    inverse_map: ArrayLike,
+    handle_points: ArrayLike,
+    distance: float = FAR_FIELD,
+    *,
+    distortion: Distortion | None = None,
+    folds: NDArray[np.bool_] | None = None,
+) -> FarField:
+    """The quality figures of the part of the output farther than ``distance`` from every handle.
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, W, 2)
+        See :func:`local_jacobians`.
+    handle_points : array_like, shape (n, 2)
+        Where the handles are in the output, ``[lon, lat]`` (``Result.constraints.points``
+        as lon/lat: every line's and cage edge's samples and every point's target).
+    distance : float
+        Degrees; :data:`FAR_FIELD` by default.
+    distortion : Distortion, optional
+        Of this map, if already computed (:func:`conformal_distortion`).
+    folds : ndarray of bool, shape (H, W), optional
+        Where the map folds, if already known (``Result.folds.mask``); else
+        :func:`fold_over` finds it.
+
+    Returns
+    -------
+    FarField
+        With no handle the whole sphere is far.
+    """
+    m = _check_map(inverse_map)
+    height, width = m.shape[:2]
+    far = ~near_mask(handle_points, distance, width)
+    area = _area(height)[:, None]
+    share = float(np.sum(far * area))
+    if distortion is None:
+        distortion = conformal_distortion(m)
+    if folds is None:
+        folds = fold_over(m).mask
+    if share == 0:
+        return FarField(float(distance), 0.0, math.nan, math.nan, math.nan, math.nan)
+    mean, p99 = _distortion_figures(distortion.per_pixel, far, distortion.max_abs_lat)
+    return FarField(
+        distance=float(distance),
+        share=share,
+        displacement=float(np.sum(_moved(m) * far * area) / share),
+        distortion_mean=mean,
+        distortion_p99=p99,
+        fold_over=float(np.sum(folds * far * area) / share),
+    )
 
 
 @dataclass(frozen=True)
@@ -604,6 +753,9 @@ class Summary:
         The warp's own time (the sum of its ``timings``), not the measuring.
     width : int
         Width of the output, the pixels the figures count in.
+    far : FarField or None
+        The same figures on the output farther than :data:`FAR_FIELD` from every handle
+        (:func:`far_field`), where a person expects nothing to move.
     """
 
     method: str
@@ -617,6 +769,7 @@ class Summary:
     cage_motion: float | None
     seconds: float
     width: int
+    far: FarField | None = None
 
     @property
     def straightness(self) -> float:
@@ -645,6 +798,9 @@ class Summary:
         ]
         if self.cage_motion is not None:
             parts.append(f"cages still to {self.cage_motion:.2g} px")
+        if self.far is not None and self.far.share > 0:
+            far = self.far.displacement
+            parts.append(f"far from the handles moved {far:.2g}°" if far >= 0.005 else "far from the handles still")
         return " · ".join(parts)
 
     def as_dict(self) -> dict[str, Any]:
@@ -656,9 +812,13 @@ class Summary:
         """
 
         def plain(v: Any) -> Any:
+            if isinstance(v, tuple):
+                return [plain(x) for x in v]
+            if isinstance(v, FarField):
+                return {k: plain(x) for k, x in v.__dict__.items()}
             return None if isinstance(v, float) and math.isnan(v) else v
 
-        out = {k: ([plain(x) for x in v] if isinstance(v, tuple) else plain(v)) for k, v in self.__dict__.items()}
+        out = {k: plain(v) for k, v in self.__dict__.items()}
         out["straightness"] = plain(self.straightness)
         return out
 
@@ -690,6 +850,7 @@ def summary(result: Any) -> Summary:
     lines = tuple(straightness(result.forward_points(samples, c), width, fit="best") for c, samples in result.constraints.lines)
     lines = tuple(v if math.isfinite(v) else math.nan for v in lines)
     distortion = conformal_distortion(m)
+    far = far_field(m, coords.xyz_to_lonlat(result.constraints.points), distortion=distortion, folds=result.folds.mask)
     fixed = [h.vertices for h in result.handles.handles if isinstance(h, CageHandle) and h.finals == h.vertices]
     return Summary(
         method=getattr(result, "method", "bbw"),
@@ -703,4 +864,5 @@ def summary(result: Any) -> Summary:
         cage_motion=max(cage_motion(m, v) for v in fixed) if fixed else None,
         seconds=float(sum(result.timings.values())),
         width=width,
+        far=far,
     )
