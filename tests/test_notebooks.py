@@ -87,9 +87,9 @@ def test_notebook_04_still_background_figures_are_the_ones_its_text_gives(execut
     cell = next(c for c in nb.cells if "still-background" in c.get("metadata", {}).get("tags", []))
     text = "".join(o.get("text", "") for o in cell.outputs if o.output_type == "stream")
     paper, still = (line.strip() for line in text.splitlines()[1::2])
-    for quoted in ("folds 2.5%", "moved 14° on average", "distortion 8.4"):
+    for quoted in ("folds 2.5%", "moved 14° on average", "distortion 8.4", "far from the handles moved 25°"):
         assert quoted in paper, paper
-    for quoted in ("folds 0%", "moved 0.11° on average", "distortion 0.035"):
+    for quoted in ("folds 0%", "moved 0.066° on average", "distortion 0.025", "far from the handles still"):
         assert quoted in still, still
     prose = next(c.source for c in nb.cells if c.cell_type == "markdown" and c.source.startswith("## Beyond the paper"))
-    assert all(figure in prose for figure in ("2.5%", "14°", "0.11°", "0.035"))
+    assert all(figure in prose for figure in ("2.5%", "14°", "25°", "0.066°", "0.025"))

@@ -87,7 +87,16 @@ def test_rooms_rectified_all_keep_joints_lines_straight_and_points_near(seed, co
     assert joints
     for landed in joints:
         assert coords.angular_distance(landed[:, None], landed[None]).max() * W / 360 < 0.5
-    assert result.constraints.rectified.displacement < 1.0  # degrees: the lines stay where they were drawn
+    # the lines stay where they were drawn: their samples move by less than 1° on average, less than the
+    # paper's eq. (10) makes them move (it holds the endpoints, to 0.02°, and swings the middles)
+    paper = build_constraints(Handles(doc.handles, Options(anchor=None)))
+    assert paper.rectified.displacement < 0.05
+    assert _line_motion(result.constraints) < min(1.0, _line_motion(paper))
+
+
+def _line_motion(constraints) -> float:
+    """Mean over the line pieces of how far (degrees) each piece's map moves its own samples, on average."""
+    return float(np.mean([coords.angular_distance(constraints.controls[c].moebius(s), s).mean() for c, s in constraints.lines]))
 
 
 def test_one_free_line_alone_is_eq4_exactly():

@@ -296,4 +296,4 @@ def _rectify_all(handles: Handles, pieces: list[_Piece], joint_of: dict[tuple[in
             for v in range(n):
                 w = (v + 1) % n
                 anchors.append(Anchor(coords.geodesic(h.vertices[v], h.vertices[w], t), coords.geodesic(h.finals[v], h.finals[w], t)))
-    return solve_bones(bones, anchors, samples=len(t), least_motion=handles.options.anchor is not None)
+    return solve_bones(bones, anchors, samples=len(t), keep="endpoints" if handles.options.anchor is None else "sphere")

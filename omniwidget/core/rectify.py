@@ -12,7 +12,9 @@ least-squares problem, in the equirectangular plane:
   output endpoints (``(1 - t) P1 + t P3``); the samples of handles that are not solved for
   (lines that keep their map, point handles, cage edges) are where their maps put them;
 - rectification (eq. 9, weight 100): the midpoint on the middle of the endpoints;
-- keep in place (eq. 10, weight 0.3): each endpoint where the person put it;
+- keep in place (eq. 10, weight 0.3): each endpoint where the person put it; with the
+  still background (``keep="sphere"``, see :func:`solve_bones`) instead: the sphere near
+  the line where it was;
 - joints (eq. 11): the authors tie joined endpoints with weight 1000; here their
   endpoints were already snapped to one point, so each joint is a single unknown (the
   weight's limit) and a joint cannot open at all.
@@ -26,12 +28,13 @@ keep-in-place term), factored once and solved for both.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from . import coords
 from ._checks import whole_number
@@ -43,25 +46,36 @@ if TYPE_CHECKING:
 
 __all__ = [
     "KEEP_WEIGHT",
+    "MOTION_WEIGHT",
+    "NEAR_LINE",
     "RECTIFY_WEIGHT",
     "RELATIVE_WEIGHT",
     "Anchor",
     "Bone",
     "RectifySolution",
     "crossing_pairs",
+    "line_neighbourhood",
+    "motion_metric",
     "rectify_line",
     "solve_bones",
 ]
 
 #: Eq. (9): weight of a rectified line's midpoint on the middle of its endpoints.
 RECTIFY_WEIGHT = 100.0
-#: With ``least_motion`` the middle keeps its place too, against eq. (9): that weight is
-#: then this many times larger, so that the line stays straight to about 1e-6 degrees.
-LEAST_MOTION_STIFFNESS = 1e4
+#: With ``keep="points"`` or ``"sphere"`` the middle's place is kept too, against eq. (9):
+#: that weight is then this many times larger, so that the line stays straight to about 1e-6 degrees.
+LEAST_MOTION_STIFFNESS = 1e6
 #: Eq. (10): weight of each solved endpoint staying where it was.
 KEEP_WEIGHT = 0.3
 #: Eq. (8): the relative-position weight at distance 0.
 RELATIVE_WEIGHT = 1.0 / 20.0
+#: With ``keep="sphere"``: the sphere within this many degrees of a line is what its map
+#: should move least (the choice measured best, ``bench/bench_line_maps.py``).
+NEAR_LINE = 4.0
+#: With ``keep="sphere"``: the weight of that motion (mean squared, degrees), 30 times an
+#: endpoint's :data:`KEEP_WEIGHT`. Much more (100 times) outweighs eq. (8), and lines that
+#: meet, as in Fig. 6, fold where they meet.
+MOTION_WEIGHT = 10 * KEEP_WEIGHT
 
 
 @dataclass(frozen=True)
@@ -199,7 +213,96 @@ def _along(points: NDArray[np.float64]) -> float:
     return min(max(t, 0.2), 0.8)
 
 
-def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: int = 50, *, least_motion: bool = False) -> RectifySolution:
+def line_neighbourhood(
+    start: ArrayLike, end: ArrayLike, radius: float, step: float = 0.5
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Points of the sphere within ``radius`` degrees of the geodesic from ``start`` to ``end``, with their areas.
+
+    Parameters
+    ----------
+    start, end : array_like, shape (2,)
+        ``[lon, lat]`` in degrees, neither equal nor antipodal.
+    radius : float
+        Degrees, more than 0.
+    step : float
+        Grid spacing in degrees, along the line and across it.
+
+    Returns
+    -------
+    xyz : ndarray of float64, shape (m, 3)
+        Unit vectors of a grid in the frame where the line runs along the equator.
+    area : ndarray of float64, shape (m,)
+        Their share of the neighbourhood's area (summing to 1).
+    """
+    if not (radius > 0 and step > 0):
+        raise ValueError(f"radius and step must be positive, got {radius!r} and {step!r}")
+    a, b = coords.lonlat_to_xyz(start), coords.lonlat_to_xyz(end)
+    normal = np.cross(a, b)
+    if np.linalg.norm(normal) < 1e-12:
+        raise ValueError("the line's start and end coincide or are antipodal")
+    normal /= np.linalg.norm(normal)
+    across = np.cross(normal, a)
+    length = math.atan2(float(b @ across), float(b @ a))
+    along, off = np.meshgrid(
+        np.radians(np.arange(-radius, math.degrees(length) + radius + step / 2, step)),
+        np.radians(np.arange(-radius, radius + step / 2, step)),
+    )
+    near = np.cos(off) * np.cos(along - np.clip(along, 0.0, length)) >= math.cos(math.radians(radius))
+    along, off = along[near], off[near]
+    xyz = np.cos(off)[:, None] * (np.cos(along)[:, None] * a + np.sin(along)[:, None] * across) + np.sin(off)[:, None] * normal
+    return xyz, np.cos(off) / np.cos(off).sum()
+
+
+def motion_metric(points: ArrayLike, radius: float = NEAR_LINE, step: float = 0.5) -> NDArray[np.float64]:
+    """How much a line's map moves the sphere near the line, to second order in its control points' motion.
+
+    Parameters
+    ----------
+    points : array_like, shape (3, 2)
+        The line's start, middle and end ``[lon, lat]`` in degrees, as in its input.
+    radius : float
+        The part of the sphere within this many degrees of the line (the geodesic from
+        start to end) is measured.
+    step : float
+        Spacing of the measuring grid, degrees.
+
+    Returns
+    -------
+    ndarray of float64, shape (6, 6)
+        ``G`` such that ``d @ G @ d`` is the area-weighted mean of ``|M(p) - p|^2``
+        (degrees squared) over that part of the sphere, for the Möbius map ``M`` sending the
+        three points to themselves plus ``d``, ordered (lon of start, middle, end, lat of
+        start, middle, end), as ``d`` goes to 0.
+
+    Notes
+    -----
+    A map that straightens a line is fixed by three target points, but the line is just as
+    straight for any targets on one straight segment: which point stays and where the
+    segment lies are a choice. Its quadratic part (how much the map bends) is fixed by the
+    line's own bow; this metric lets the least-squares of :func:`solve_bones` take the
+    targets whose map moves the sphere around the line least.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    if points.shape != (3, 2) or not np.all(np.isfinite(points)):
+        raise ValueError(f"points must be three finite [lon, lat] rows, got shape {points.shape}")
+    grid, area = line_neighbourhood(points[0], points[2], radius, step)
+    h = 1e-4  # degrees: one-sided differences of the motion in each of the six coordinates
+    jacobian = np.empty((grid.size, 6))
+    for j in range(6):
+        moved = points.copy()
+        moved[j % 3, j // 3] += h
+        jacobian[:, j] = ((Moebius.from_points(points, moved).apply_xyz(grid) - grid) * (math.degrees(1.0) / h)).ravel()
+    area = np.repeat(area, 3)
+    return jacobian.T @ (area[:, None] * jacobian)
+
+
+def solve_bones(
+    bones: Sequence[Bone],
+    anchors: Sequence[Anchor] = (),
+    samples: int = 50,
+    *,
+    keep: Literal["endpoints", "points", "sphere"] = "endpoints",
+) -> RectifySolution:
     """Solve Sec. 3.4's least squares for the free bones' output control points.
 
     Parameters
@@ -210,19 +313,29 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
         relative-position terms.
     samples : int
         Samples per bone in the relative-position terms (the paper's 50).
-    least_motion : bool
-        Straighten each line by moving it least (the still background's choice, see
-        :data:`LEAST_MOTION`): its middle goes to the point of the output chord at the
-        parameter where it lies along the input chord (not to the chord's middle), and it
-        too keeps its place with the endpoints' weight, so that the chord moves towards the
-        line and the correction is shared by all three control points. False: eqs. (9)-(10)
-        as the paper writes them.
+    keep : {"endpoints", "points", "sphere"}
+        What each line keeps in place while it is made straight:
+
+        - ``"endpoints"``: eqs. (9)-(10) as the paper writes them: the middle goes to the
+          middle of the output chord, the endpoints keep their places (weight
+          :data:`KEEP_WEIGHT`);
+        - ``"points"``: the middle goes to the point of the output chord at the parameter
+          where it lies along the input chord (:data:`LEAST_MOTION_STIFFNESS` times eq. (9)'s
+          weight), and all three control points keep their places alike, so the correction
+          is shared;
+        - ``"sphere"`` (the still background's): as ``"points"``, and the control points
+          also move so that the line's map moves the sphere within :data:`NEAR_LINE`
+          degrees of the line least (:func:`motion_metric`, weight :data:`MOTION_WEIGHT`).
+          That is where the background's weight changes, and there the blend's distortion
+          is about the map's motion times the weight's gradient.
 
     Returns
     -------
     RectifySolution
     """
     samples = whole_number(samples, "samples", 2)
+    if keep not in ("endpoints", "points", "sphere"):
+        raise ValueError(f'keep must be "endpoints", "points" or "sphere", got {keep!r}')
     import scipy.sparse as sp
     from scipy.linalg import cho_factor, cho_solve
     from scipy.spatial import cKDTree
@@ -270,6 +383,7 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
         return [(v0, sign * (1 - tt) * is_free), (v2, sign * tt * is_free)], sign * const
 
     rows = _Rows()
+    metrics: list[tuple[int, NDArray[np.float64]]] = []  # keep="sphere": (bone, motion metric)
     # every pair of samples of different handles closer than S_k / 4 (eq. 8), one of them solved for
     span_all = np.asarray(spans)[owner_all]
     east = np.mod(inputs_all[:, 0], 360.0)
@@ -280,8 +394,8 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
     found = tree.query_ball_point(plane[asking], span_all[asking] / 4)
     i = np.repeat(asking, [len(f) for f in found])
     j = np.fromiter(itertools.chain.from_iterable(found), dtype=np.int64, count=len(i))
-    keep = (owner_all[i] != owner_all[j]) & (free_all[i] | free_all[j])
-    i, j = i[keep], j[keep]
+    pair = (owner_all[i] != owner_all[j]) & (free_all[i] | free_all[j])
+    i, j = i[pair], j[pair]
     if len(i):
         gap = inputs_all[i] - inputs_all[j]
         r = np.hypot(coords.wrap_lon(gap[:, 0]), gap[:, 1])
@@ -293,13 +407,15 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
         if not b.free:
             continue
         v, p = var[k], known[k]
-        t = _along(p) if least_motion else 0.5
+        t = 0.5 if keep == "endpoints" else _along(p)
         rows.add(  # eq. (9): middle - ((1 - t) start + t end), t = 1/2 in the paper
             [(v[1:2], np.ones(1)), (v[0:1], np.full(1, t - 1.0)), (v[2:3], np.full(1, -t))],
             (p[1] - (1.0 - t) * p[0] - t * p[2])[None],
-            np.full(1, RECTIFY_WEIGHT * (LEAST_MOTION_STIFFNESS if least_motion else 1.0)),
+            np.full(1, RECTIFY_WEIGHT * (1.0 if keep == "endpoints" else LEAST_MOTION_STIFFNESS)),
         )
-        for s in (0, 1, 2) if least_motion else (0, 2):  # eq. (10): endpoints stay (and the middle, moving least)
+        if keep == "sphere":
+            metrics.append((k, motion_metric(_inputs(b), NEAR_LINE)))
+        for s in (0, 2) if keep == "endpoints" else (0, 1, 2):  # eq. (10): the endpoints stay (and the middle)
             rows.add([(v[s : s + 1], np.ones(1))], np.zeros((1, 2)), np.full(1, KEEP_WEIGHT))
     a = sp.csr_matrix((np.concatenate(rows.val), (np.concatenate(rows.row), np.concatenate(rows.col))), shape=(rows.count, n))
     w = np.concatenate(rows.weight)
@@ -307,7 +423,9 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
     q = (a.T @ sp.diags(w) @ a).tocsc()
     rhs = -(a.T @ (w[:, None] * const))
     x = np.zeros((n, 2))
-    if n:
+    if n and metrics:
+        x = _solve_coupled(q.toarray(), rhs, metrics, var, known, bones)
+    elif n:
         x = cho_solve(cho_factor(q.toarray()), rhs)  # n is 3 per line: small and dense is fastest
     targets: list[NDArray[np.float64] | None] = []
     moved_by = []
@@ -320,6 +438,47 @@ def solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor] = (), samples: 
         out[:, 0] = coords.wrap_lon(out[:, 0])
         targets.append(out)
     return RectifySolution(targets, q.tocsr(), float(np.mean(moved_by)) if moved_by else 0.0)
+
+
+def _inputs(bone: Bone) -> NDArray[np.float64]:
+    """A bone's input start, geodesic middle and end, (3, 2), longitudes unwrapped at the start."""
+    points = np.stack(
+        [np.asarray(bone.start, np.float64), coords.geodesic_midpoint(bone.start, bone.end), np.asarray(bone.end, np.float64)]
+    )
+    points[:, 0] = coords.unwrap_lon(points[:, 0], points[0, 0])
+    return points
+
+
+def _solve_coupled(
+    q: NDArray[np.float64],
+    rhs: NDArray[np.float64],
+    metrics: Sequence[tuple[int, NDArray[np.float64]]],
+    var: NDArray[np.int64],
+    known: NDArray[np.float64],
+    bones: Sequence[Bone],
+) -> NDArray[np.float64]:
+    """The least squares with motion metrics, which tie longitude to latitude: one (2n, 2n) system.
+
+    ``q`` (n, n) and ``rhs`` (n, 2) are the separable rows' normal equations (with every
+    control point's keep term, so the system is definite); each metric
+    adds ``(c + P x) @ (MOTION_WEIGHT G) @ (c + P x)``, where ``c`` is how far a control
+    point joined to a kept bone already sits from the input. Returns x, (n, 2).
+    """
+    from scipy.linalg import cho_factor, cho_solve
+
+    n = len(q)
+    big = np.zeros((2 * n, 2 * n))
+    big[:n, :n] = big[n:, n:] = q
+    right = np.concatenate([rhs[:, 0], rhs[:, 1]])
+    for k, metric in metrics:
+        g = MOTION_WEIGHT * metric
+        index = np.concatenate([var[k], np.where(var[k] >= 0, var[k] + n, -1)])
+        unknown = index >= 0
+        offset = (known[k] - _inputs(bones[k])).T.ravel() * ~unknown  # lon then lat, as in the metric
+        big[np.ix_(index[unknown], index[unknown])] += g[np.ix_(unknown, unknown)]
+        right[index[unknown]] -= (g @ offset)[unknown]
+    solution = cho_solve(cho_factor(big), right)
+    return np.stack([solution[:n], solution[n:]], axis=1)
 
 
 def crossing_pairs(curves: Sequence[NDArray[np.float64]], tolerance: float = 1e-6) -> list[tuple[int, int]]:
