@@ -22,7 +22,8 @@ least-squares problem, in the equirectangular plane:
 All terms are in displacement form (output minus input), so longitudes are unwrapped per
 line and nothing depends on where the ±180° seam falls. The longitude and latitude
 problems share one symmetric positive definite matrix (every solved endpoint has a
-keep-in-place term), factored once and solved for both.
+keep-in-place term), factored once and solved for both; with ``keep="sphere"`` the motion
+of the sphere ties them, and one system of twice the size is solved.
 """
 
 from __future__ import annotations
@@ -72,9 +73,9 @@ RELATIVE_WEIGHT = 1.0 / 20.0
 #: With ``keep="sphere"``: the sphere within this many degrees of a line is what its map
 #: should move least (the choice measured best, ``bench/bench_line_maps.py``).
 NEAR_LINE = 4.0
-#: With ``keep="sphere"``: the weight of that motion (mean squared, degrees), 30 times an
-#: endpoint's :data:`KEEP_WEIGHT`. Much more (100 times) outweighs eq. (8), and lines that
-#: meet, as in Fig. 6, fold where they meet.
+#: With ``keep="sphere"``: the weight of that motion (mean squared, degrees), 10 times an
+#: endpoint's :data:`KEEP_WEIGHT`. More outweighs eq. (8) where lines meet, as in Fig. 6:
+#: at 30 times the sides' tops come within 0.4° of the top edge, at 100 times they fold.
 MOTION_WEIGHT = 10 * KEEP_WEIGHT
 
 
@@ -181,11 +182,7 @@ def _slots(bones: Sequence[Bone]) -> tuple[NDArray, NDArray, int]:
     for k, b in enumerate(bones):
         if not b.free:
             continue
-        start = np.asarray(b.start, np.float64)
-        mid = coords.geodesic_midpoint(b.start, b.end)
-        end = np.asarray(b.end, np.float64)
-        for s, p in enumerate((start, mid, end)):
-            known[k, s] = (coords.unwrap_lon(p[0], start[0]), p[1])
+        known[k] = _inputs(b)
         for s, j in ((0, b.joints[0]), (2, b.joints[1])):
             if j is not None and j in fixed_joint:
                 out = fixed_joint[j]
