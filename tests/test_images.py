@@ -82,13 +82,18 @@ def _bad_files(tmp_path):
     }
 
 
+def _place(path, data: bytes | None) -> None:
+    """Write one of ``_bad_files``' files: its bytes, or a folder where the data is None."""
+    if data is None:
+        path.mkdir()
+    else:
+        path.write_bytes(data)
+
+
 def test_bad_files_are_refused_by_name_and_decoders_print_nothing(tmp_path, capfd):
     for name, (data, message) in _bad_files(tmp_path).items():
         path = tmp_path / name
-        if data is None:
-            path.mkdir()
-        else:
-            path.write_bytes(data)
+        _place(path, data)
         with pytest.raises(ImageError) as info:
             read_image(path)
         assert str(info.value).startswith(f"{path}: {message}"), (name, str(info.value))
@@ -103,10 +108,7 @@ def test_bad_files_through_the_command_line_give_one_line_and_leave_nothing(tmp_
     (work / "h.json").write_text(json.dumps(ONE_POINT))
     for name, (data, message) in _bad_files(tmp_path).items():
         path = work / name
-        if data is None:
-            path.mkdir()
-        else:
-            path.write_bytes(data)
+        _place(path, data)
         listing = sorted(p.name for p in work.iterdir())
         before = _digest(path) if data is not None else None
         code = main(["warp", str(path), "-H", str(work / "h.json"), "-o", str(work / "out.png"), "--map", str(work / "map.npy")])

@@ -46,14 +46,19 @@ def test_unwritable_combinations_are_refused_before_anything_is_written(tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
-def test_atomic_write_leaves_the_old_file_when_writing_fails(tmp_path, monkeypatch):
-    path = tmp_path / "out.bin"
-    path.write_bytes(b"old")
+@pytest.fixture
+def full_disk(monkeypatch):
+    """Every atomic write fails as it moves its temporary file into place, as on a full disk."""
 
     def failing_replace(src, dst):
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr("omniwidget.core.io.os.replace", failing_replace)
+
+
+def test_atomic_write_leaves_the_old_file_when_writing_fails(tmp_path, full_disk):
+    path = tmp_path / "out.bin"
+    path.write_bytes(b"old")
     with pytest.raises(OSError, match="No space"):
         atomic_write_bytes(path, b"new")
     assert path.read_bytes() == b"old"
@@ -71,14 +76,9 @@ def test_unreadable_files_name_the_problem(tmp_path):
         read_image(tmp_path / "missing.png")
 
 
-def test_a_failed_write_says_where_and_leaves_the_old_file(tmp_path, monkeypatch):
+def test_a_failed_write_says_where_and_leaves_the_old_file(tmp_path, full_disk):
     path = tmp_path / "out.png"
     path.write_bytes(b"old")
-
-    def failing_replace(src, dst):
-        raise OSError(28, "No space left on device")
-
-    monkeypatch.setattr("omniwidget.core.io.os.replace", failing_replace)
     with pytest.raises(ImageError) as info:
         write_image(path, np.zeros((4, 8, 3), np.uint8))
     assert str(info.value) == f"{path}: cannot write the file (No space left on device)"  # no temporary file's name in it
