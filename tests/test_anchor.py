@@ -54,7 +54,9 @@ def test_a_still_background_keeps_the_room_where_it_was(seed, n):
     assert still.folds.area == 0 and ours.coverage >= 0.995
     assert ours.displacement <= 0.5  # degrees, area-weighted mean
     assert ours.distortion_mean <= 0.05
-    assert ours.distortion_p99 <= 0.5  # 0.30-0.50 on these rooms
+    # 0.38-0.52 on these rooms: every line is now cut into pieces until it is straight (their own single
+    # maps left them up to 1.25 px from straight), which costs room 3 0.02 (it was 0.496 before the cut)
+    assert ours.distortion_p99 <= 0.53
     # far from every line nothing moves at all; the paper's method swings it
     assert ours.far.share > 0.2 and ours.far.displacement < 1e-6 and ours.far.fold_over == 0
     assert theirs.far.displacement > 5.0

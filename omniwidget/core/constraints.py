@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from . import coords
 from ._checks import whole_number
@@ -28,7 +28,7 @@ from .handles import CageHandle, Handles, LineHandle, PointHandle
 from .moebius import Moebius
 from .rectify import Anchor, Bone, RectifySolution, solve_bones
 
-__all__ = ["JOINT_DISTANCE", "SAMPLES", "Constraints", "Control", "build_constraints"]
+__all__ = ["JOINT_DISTANCE", "LINE_TOLERANCE", "POINT_HOLD", "SAMPLES", "Constraints", "Control", "build_constraints", "split_line"]
 
 #: Samples per line and per cage edge (the paper's 50).
 SAMPLES = 50
@@ -36,6 +36,25 @@ SAMPLES = 50
 JOINT_DISTANCE = 360.0 / 150.0
 #: How close to an endpoint (degrees) a crossing may be and still split the lines.
 CROSSING_MARGIN = 1e-6
+#: With the still background a point handle's map holds exactly within this many degrees of
+#: its target (the disk's mesh vertices carry its weight 1), so the centre, the zoom and the
+#: turn the person set are what the image shows there.
+POINT_HOLD = 1.0
+#: Samples on the rim of a point handle's disk.
+RIM_SAMPLES = 12
+#: With the still background a rectified line whose map leaves it farther than this many
+#: degrees from its straight output segment (0.11 px at 2048 wide) is cut into pieces, each
+#: with its own map, until every piece lies that close (the paper's Fig. 14: one Möbius map
+#: cannot straighten a long line).
+LINE_TOLERANCE = 0.02
+#: The most pieces one line is cut into.
+MAX_PIECES = 16
+#: A rectified line that climbs to this latitude (degrees, north or south) passes over or
+#: close to a pole, where eq. (4) would send its middle far round the pole (a ceiling edge
+#: right above the camera): with the still background it is kept as it is, already as
+#: straight as the equirectangular image can show it. Chosen where eq. (4) stops helping
+#: (``bench/bench_pole_lines.py``).
+POLE_LATITUDE = 75.0
 
 
 @dataclass(frozen=True)
@@ -70,11 +89,25 @@ class Constraints:
     values : ndarray of float64, shape (p, k)
         Prescribed weights at ``points``.
     lines : tuple of (int, ndarray)
-        For each line piece, its control index and its input samples ``[lon, lat]`` (s, 2),
-        from which straightness is measured.
+        For each line piece, its control index and its input samples ``[lon, lat]`` (s, 2).
     rectified : RectifySolution or None
         With ``options.rectify == "all"`` and at least one rectified line: the solve of
         Sec. 3.4 that placed the lines' control points (:mod:`.rectify`).
+    chains : tuple of tuple of int
+        Indices into ``lines`` of the pieces that make one straight output segment, in order
+        along it: a line cut for its length (:func:`split_line`) is one chain of several
+        pieces, every other line piece a chain of one. Straightness is measured per chain.
+    disks : tuple of (int, ndarray)
+        With the still background: each point handle's control and its target (a unit
+        vector, (3,)); the blend holds that control's map exactly within
+        :data:`POINT_HOLD` degrees of it.
+    cages : tuple of (tuple of int, ndarray)
+        Each cage's controls and its output polygon ``[lon, lat]`` (n, 2): with the still
+        background only those controls have weight inside it.
+    near_pole : tuple of (int, float)
+        Rectified lines that climb to :data:`POLE_LATITUDE` or beyond: the handle's index and
+        the latitude it reaches (negative in the south). With the still background they are
+        kept as they are (an identity map, fixed in Sec. 3.4).
     """
 
     controls: tuple[Control, ...]
@@ -82,6 +115,10 @@ class Constraints:
     values: NDArray[np.float64]
     lines: tuple[tuple[int, NDArray[np.float64]], ...]
     rectified: RectifySolution | None = None
+    chains: tuple[tuple[int, ...], ...] = ()
+    disks: tuple[tuple[int, NDArray[np.float64]], ...] = ()
+    cages: tuple[tuple[tuple[int, ...], NDArray[np.float64]], ...] = ()
+    near_pole: tuple[tuple[int, float], ...] = ()
 
 
 def _cross(a: NDArray, b: NDArray) -> tuple[float, float, float]:
@@ -181,6 +218,77 @@ def _joints(pieces: list[_Piece], distance: float) -> dict[tuple[int, int], int]
     return joint_of
 
 
+def _off_chord(curve: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """Largest distance (degrees, in the lon/lat plane) of a curve from the straight line through ``a`` and ``b``.
+
+    ``curve`` (n, 2) has its longitudes unwrapped near ``a``; ``a`` and ``b`` (2,) are in that frame.
+    """
+    chord = b - a
+    normal = np.array([-chord[1], chord[0]]) / max(float(np.hypot(*chord)), 1e-300)
+    return float(np.max(np.abs((curve - a) @ normal)))
+
+
+def split_line(
+    moebius: Moebius, start: ArrayLike, end: ArrayLike, tolerance: float = LINE_TOLERANCE, max_pieces: int = MAX_PIECES
+) -> list[tuple[NDArray[np.float64], NDArray[np.float64], Moebius]]:
+    """Cut a line that one Möbius map cannot straighten into pieces, each with its own map onto one straight segment.
+
+    Parameters
+    ----------
+    moebius : Moebius
+        The line's map (eq. 4's, or Sec. 3.4's): its output segment runs from where it puts
+        ``start`` to where it puts ``end``, straight in the equirectangular image.
+    start, end : array_like, shape (2,)
+        The line's input ends, ``[lon, lat]`` in degrees.
+    tolerance : float
+        Degrees: the largest distance of the line's image from its segment that is left.
+    max_pieces : int
+
+    Returns
+    -------
+    list of (ndarray, ndarray, Moebius)
+        Each piece's input start and end ``[lon, lat]`` (2,) and its map, in order along the
+        line; ``[(start, end, moebius)]`` when the map alone is within ``tolerance``.
+
+    Notes
+    -----
+    A Möbius map sends the line's great circle to a circle of the sphere, and a circle
+    through three points of a straight segment of the image stays near it only over a short
+    arc. With ``n`` pieces, the piece ends and middles (the line cut evenly) go to where
+    ``moebius`` puts them, moved across onto the segment (projected in the lon/lat plane):
+    each piece's map is then a small correction of the line's own, the pieces meet at their
+    ends, and together they run along one segment. The smallest ``n`` that leaves every
+    piece within ``tolerance`` is taken.
+    """
+    start, end = np.asarray(start, np.float64), np.asarray(end, np.float64)
+    t = np.linspace(0.0, 1.0, 101)
+    ends = moebius(np.stack([start, end]))
+    a = ends[0]
+    b = np.array([coords.unwrap_lon(ends[1, 0], a[0]), ends[1, 1]])
+
+    def image(m: Moebius, lonlat: NDArray) -> NDArray:
+        out = m(lonlat)
+        out[:, 0] = coords.unwrap_lon(out[:, 0], a[0])
+        return out
+
+    if _off_chord(image(moebius, coords.geodesic(start, end, t)), a, b) <= tolerance:
+        return [(start, end, moebius)]
+    chord = b - a
+    pieces: list[tuple[NDArray[np.float64], NDArray[np.float64], Moebius]] = []
+    for n in range(2, max_pieces + 1):
+        knots = coords.geodesic(start, end, np.linspace(0.0, 1.0, 2 * n + 1))
+        knots[0], knots[-1] = start, end
+        onto = image(moebius, knots)
+        onto = a + np.outer((onto - a) @ chord / (chord @ chord), chord)  # across onto the segment
+        pieces = [
+            (knots[2 * j], knots[2 * j + 2], Moebius.from_points(knots[2 * j : 2 * j + 3], onto[2 * j : 2 * j + 3])) for j in range(n)
+        ]
+        worst = max(_off_chord(image(m, coords.geodesic(p, q, t)), a, b) for p, q, m in pieces)
+        if worst <= tolerance:
+            break
+    return pieces
+
+
 def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distance: float = JOINT_DISTANCE) -> Constraints:
     """The controls of a handles document and the boundary conditions of their weights.
 
@@ -202,8 +310,12 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     rows: list[tuple[NDArray[np.float64], dict[int, float]]] = []  # (point, {control: weight})
     line_samples: list[tuple[int, NDArray[np.float64]]] = []
 
+    background = handles.options.anchor is not None
+    tops = [(i, _pole_latitude(h)) for i, h in enumerate(handles.handles) if isinstance(h, LineHandle)]
+    near_pole = tuple((i, top) for i, top in tops if top)
+    kept = {i for i, _ in near_pole} if background else set()
     pieces = [
-        _Piece(i, coords.lonlat_to_xyz(h.start), coords.lonlat_to_xyz(h.end), h)
+        _Piece(i, coords.lonlat_to_xyz(h.start), coords.lonlat_to_xyz(h.end), replace(h, rectify=False) if i in kept else h)
         for i, h in enumerate(handles.handles)
         if isinstance(h, LineHandle)
     ]
@@ -215,16 +327,28 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     solution = _rectify_all(handles, pieces, joint_of, t) if handles.options.rectify == "all" else None
     joint_rows: dict[int, dict[int, float]] = {}
     joint_points: dict[int, NDArray[np.float64]] = {}
+    chains: list[tuple[int, ...]] = []
+    disks: list[tuple[int, NDArray[np.float64]]] = []
+    cages: list[tuple[tuple[int, ...], NDArray[np.float64]]] = []
 
     for i, h in enumerate(handles.handles):
         if isinstance(h, PointHandle):
             controls.append(Control(h.moebius(), i, f"handles[{i}] (point)"))
-            rows.append((coords.lonlat_to_xyz(h.final), {len(controls) - 1: 1.0}))
+            centre = coords.lonlat_to_xyz(h.final)
+            rows.append((centre, {len(controls) - 1: 1.0}))
+            if background:  # the rim of the disk where the point's map holds exactly
+                disks.append((len(controls) - 1, centre))
+                east, north = coords.local_frame(h.final)
+                turn = np.linspace(0.0, 2.0 * math.pi, RIM_SAMPLES, endpoint=False)[:, None]
+                r = math.radians(POINT_HOLD)
+                rim = math.cos(r) * centre + math.sin(r) * (np.cos(turn) * east + np.sin(turn) * north)
+                rows.extend((p, {len(controls) - 1: 1.0}) for p in rim)
         elif isinstance(h, CageHandle):
             first = len(controls)
-            maps = h.vertex_maps()
+            maps = h.vertex_maps(carry=background)
             for v, m in enumerate(maps):
                 controls.append(Control(m, i, f"handles[{i}] (cage vertex {v})"))
+            cages.append((tuple(range(first, len(controls))), np.asarray(h.finals, dtype=np.float64)))
             finals = coords.lonlat_to_xyz(np.asarray(h.finals, dtype=np.float64))
             n = len(maps)
             for v in range(n):
@@ -236,32 +360,36 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
                         weights[first + w] = t[s]
                     rows.append((point, weights))
         else:
-            own = pieces_of[i]
-            for n, k in enumerate(own, start=1):
-                piece = pieces[k]
-                part = f", part {n} of {len(own)}" if len(own) > 1 else ""
-                start, end = coords.xyz_to_lonlat(piece.start), coords.xyz_to_lonlat(piece.end)
-                # explicit targets keep the handle as drawn; otherwise the piece's (split, snapped) ends
-                if h.targets is not None:
-                    line = h
-                elif solution is not None and solution.targets[k] is not None:
-                    line = LineHandle(tuple(start), tuple(end), rectify=False, targets=tuple(map(tuple, solution.targets[k])))
-                else:
-                    line = LineHandle(tuple(start), tuple(end), rectify=h.rectify)
-                m = line.moebius()
-                controls.append(Control(m, i, f"handles[{i}] (line{part})"))
-                c = len(controls) - 1
-                src = coords.geodesic(start, end, t)
-                line_samples.append((c, src))
-                out = m.apply_xyz(coords.lonlat_to_xyz(src))
-                for s in range(samples):
-                    end_id = 0 if s == 0 else 1 if s == samples - 1 else None
-                    if end_id is not None and (k, end_id) in joint_of:
-                        jid = joint_of[(k, end_id)]
-                        joint_rows.setdefault(jid, {})[c] = 1.0
-                        joint_points.setdefault(jid, out[s])
-                        continue
-                    rows.append((out[s], {c: 1.0}))
+            parts_of = {
+                k: _line_parts(pieces[k].line, pieces[k], solution.targets[k] if solution is not None else None, background)
+                for k in pieces_of[i]
+            }
+            total = sum(len(p) for p in parts_of.values())
+            number = 0
+            for k, parts in parts_of.items():
+                first = len(line_samples)
+                for j, (start, end, m) in enumerate(parts):
+                    number += 1
+                    part = f", part {number} of {total}" if total > 1 else ""
+                    controls.append(Control(m, i, f"handles[{i}] (line{part})"))
+                    c = len(controls) - 1
+                    src = coords.geodesic(start, end, t)
+                    line_samples.append((c, src))
+                    out = m.apply_xyz(coords.lonlat_to_xyz(src))
+                    for s in range(samples):
+                        if s == 0 and j > 0:
+                            continue  # the joint with the piece before, already a row
+                        if s == samples - 1 and j < len(parts) - 1:
+                            rows.append((out[s], {c: 0.5, c + 1: 0.5}))  # both pieces' maps put it here
+                            continue
+                        end_id = 0 if s == 0 else 1 if s == samples - 1 else None
+                        if end_id is not None and (k, end_id) in joint_of:
+                            jid = joint_of[(k, end_id)]
+                            joint_rows.setdefault(jid, {})[c] = 1.0
+                            joint_points.setdefault(jid, out[s])
+                            continue
+                        rows.append((out[s], {c: 1.0}))
+                chains.append(tuple(range(first, len(line_samples))))
     for jid, members in joint_rows.items():
         share = 1.0 / len(members)
         rows.append((joint_points[jid], dict.fromkeys(members, share)))
@@ -272,7 +400,38 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     for r, (_, weights) in enumerate(rows):
         for c, w in weights.items():
             values[r, c] = w
-    return Constraints(tuple(controls), points, values, tuple(line_samples), solution)
+    return Constraints(
+        tuple(controls), points, values, tuple(line_samples), solution, tuple(chains), tuple(disks), tuple(cages), near_pole
+    )
+
+
+def _pole_latitude(h: LineHandle) -> float:
+    """The latitude a rectified line climbs to when that is :data:`POLE_LATITUDE` or more (signed), else 0."""
+    if h.targets is not None or not h.rectify:
+        return 0.0
+    top = coords.arc_max_abs_lat(h.start, h.end)
+    if top < POLE_LATITUDE:
+        return 0.0
+    middle = coords.geodesic(h.start, h.end, np.linspace(0.0, 1.0, 33))[:, 1]
+    return top if middle[np.argmax(np.abs(middle))] > 0 else -top
+
+
+def _line_parts(
+    h: LineHandle, piece: _Piece, targets: NDArray[np.float64] | None, background: bool
+) -> list[tuple[NDArray[np.float64], NDArray[np.float64], Moebius]]:
+    """A line piece's map, cut for its length (:func:`split_line`) where the still background is on and the line is rectified."""
+    start, end = coords.xyz_to_lonlat(piece.start), coords.xyz_to_lonlat(piece.end)
+    # explicit targets keep the handle as drawn; otherwise the piece's (split, snapped) ends
+    if h.targets is not None:
+        line = h
+    elif targets is not None:
+        line = LineHandle(tuple(start), tuple(end), rectify=False, targets=tuple(map(tuple, targets)))
+    else:
+        line = LineHandle(tuple(start), tuple(end), rectify=h.rectify)
+    m = line.moebius()
+    if background and h.targets is None and h.rectify:
+        return split_line(m, start, end)
+    return [(start, end, m)]
 
 
 def _rectify_all(handles: Handles, pieces: list[_Piece], joint_of: dict[tuple[int, int], int], t: NDArray) -> RectifySolution | None:

@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "angular_distance",
+    "arc_max_abs_lat",
     "geodesic",
     "geodesic_midpoint",
     "grid_lonlat",
@@ -376,3 +377,33 @@ def geodesic(start: ArrayLike, end: ArrayLike, t: ArrayLike) -> FloatArray:
 def geodesic_midpoint(start: ArrayLike, end: ArrayLike) -> FloatArray:
     """The geodesic midpoint ``P2 = SB(1/2)`` of a spherical bone, ``[lon, lat]``."""
     return geodesic(start, end, [0.5])[0]
+
+
+def arc_max_abs_lat(start: ArrayLike, end: ArrayLike) -> float:
+    """The largest ``|latitude|`` in degrees anywhere on the geodesic arc from ``start`` to ``end``.
+
+    An arc can climb higher than both its ends: besides them, the highest and lowest points
+    of its whole great circle count where they lie on the arc. ``90 -`` this is how close
+    the arc comes to a pole.
+
+    Parameters
+    ----------
+    start, end : array_like, shape (2,)
+        ``[lon, lat]`` in degrees; not antipodal.
+
+    Returns
+    -------
+    float
+    """
+    p, q = lonlat_to_xyz(start), lonlat_to_xyz(end)
+    normal = np.cross(p, q)
+    size = float(np.linalg.norm(normal))
+    if size < 1e-12:
+        return float(np.max(np.abs([_lonlat(start)[1], _lonlat(end)[1]])))
+    normal /= size
+    candidates = [p, q]
+    top = np.array([0.0, 0.0, 1.0]) - normal[2] * normal  # the north pole projected onto the circle's plane
+    if np.linalg.norm(top) > 1e-12:  # else the circle is the equator
+        top /= np.linalg.norm(top)
+        candidates += [c for c in (top, -top) if np.dot(np.cross(p, c), normal) >= 0 and np.dot(np.cross(c, q), normal) >= 0]
+    return float(np.max(np.abs(xyz_to_lonlat(np.array(candidates))[:, 1])))

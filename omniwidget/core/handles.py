@@ -188,6 +188,18 @@ class LineHandle:
         return Moebius.from_points(self.control_points(), self.target_points())
 
 
+def _shortest_turn(a: NDArray[np.float64], b: NDArray[np.float64]) -> Moebius:
+    """The rotation about ``a × b`` taking unit vector ``a`` to ``b`` (the identity when they coincide).
+
+    Unlike :meth:`Moebius.translation` it needs no east/north frame, so it is well defined at the poles.
+    """
+    axis = np.cross(a, b)
+    size = float(np.linalg.norm(axis))
+    if size < 1e-15:
+        return Moebius.identity() if float(a @ b) > 0 else Moebius.translation(coords.xyz_to_lonlat(a), coords.xyz_to_lonlat(b))
+    return Moebius.rotation(coords.xyz_to_lonlat(axis / size), math.degrees(math.atan2(size, float(a @ b))))
+
+
 @dataclass(frozen=True)
 class CageHandle:
     """A spherical cage (Sec. 3.3): a closed polygon of geodesic edges.
@@ -207,9 +219,38 @@ class CageHandle:
         """The vertices' output positions."""
         return self.targets if self.targets is not None else self.vertices
 
-    def vertex_maps(self) -> list[Moebius]:
-        """One Möbius map per vertex."""
-        return [Moebius.translation(v, t) for v, t in zip(self.vertices, self.finals, strict=True)]
+    def vertex_maps(self, carry: bool = False) -> list[Moebius]:
+        """One Möbius map per vertex.
+
+        Parameters
+        ----------
+        carry : bool
+            False (the paper): each vertex's map is the shift :meth:`Moebius.translation`
+            from the vertex to its target. True (with the still background): each is the
+            cage's best rotation (:meth:`rotation`) followed by the shift that puts the
+            vertex exactly on its target, so a cage moved rigidly carries its inside by one
+            rotation whatever the blend's weights inside it, and a cage bent out of shape by
+            maps that differ only by what the bending asks.
+        """
+        if not carry:
+            return [Moebius.translation(v, t) for v, t in zip(self.vertices, self.finals, strict=True)]
+        rotation = self.rotation()
+        turned = coords.lonlat_to_xyz(np.asarray(self.vertices, np.float64)) @ rotation.T
+        whole = Moebius.from_rotation(rotation)
+        return [_shortest_turn(v, t) @ whole for v, t in zip(turned, coords.lonlat_to_xyz(np.asarray(self.finals, np.float64)), strict=True)]
+
+    def rotation(self) -> NDArray[np.float64]:
+        """The rotation of the sphere that best moves the vertices to their targets, (3, 3).
+
+        The orthogonal Procrustes solution (Kabsch) on the unit vectors, without reflection:
+        ``R`` minimising ``sum |R v - t|^2``; exactly the motion for a cage moved rigidly,
+        the identity for a cage that stays.
+        """
+        v = coords.lonlat_to_xyz(np.asarray(self.vertices, np.float64))
+        t = coords.lonlat_to_xyz(np.asarray(self.finals, np.float64))
+        u, _, vt = np.linalg.svd(t.T @ v)
+        d = np.sign(np.linalg.det(u @ vt)) or 1.0
+        return u @ np.diag([1.0, 1.0, d]) @ vt
 
 
 Handle = PointHandle | LineHandle | CageHandle

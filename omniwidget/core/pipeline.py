@@ -9,6 +9,7 @@ blend of eq. (2) (:mod:`.blend`) and the resampling (:mod:`.warping`).
 from __future__ import annotations
 
 import math
+import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
@@ -191,6 +192,10 @@ class Result:
         return self._inverse_map.astype(dtype, copy=dtype is not np.float64)
 
 
+#: The piece of a line a control is (", part 2 of 3"), left out where handles are named.
+_PART = re.compile(r", part \d+ of \d+")
+
+
 def _merge_duplicates(
     b: NDArray[np.int64], values: NDArray[np.float64], controls: tuple[Control, ...]
 ) -> tuple[NDArray, NDArray, list[str]]:
@@ -203,7 +208,7 @@ def _merge_duplicates(
     for u, s, e in zip(unique, start, np.append(start[1:], len(b)), strict=True):
         rows = values[s:e]
         if e - s > 1 and np.abs(rows - rows[0]).max() > 1e-9:
-            names = tuple(sorted({controls[c].label for c in np.flatnonzero(np.abs(rows).sum(axis=0) > 0)}))
+            names = tuple(sorted({_PART.sub("", controls[c].label) for c in np.flatnonzero(np.abs(rows).sum(axis=0) > 0)}))
             clashes.setdefault(names, []).append(int(u))
     problems = [
         f"constraints of {', '.join(names)} fall on the same point"
@@ -223,15 +228,29 @@ ANCHOR_GROWTH = 2.0
 BACKGROUND_EASE = 3.0
 
 
-def _with_background(constraints: Constraints, vertices: NDArray[np.float64], anchor: float) -> tuple[Constraints, NDArray[np.int64]]:
-    """The constraints with the still background's control added, and the mesh vertices where it has weight 1.
+def _with_background(
+    constraints: Constraints, vertices: NDArray[np.float64], anchor: float, insides: list[tuple[NDArray[np.int64], NDArray[np.bool_]]]
+) -> tuple[Constraints, NDArray[np.int64], NDArray[np.float64]]:
+    """The constraints with the still background's control added, and the mesh vertices whose weights it fixes.
 
-    A vertex is still when it lies farther than its anchor distance from every control's
-    prescribed points: ``anchor`` degrees plus :data:`ANCHOR_GROWTH` times the largest
-    distance the control's map moves one of them (a point dragged far, a line bent much,
-    reaches farther than a cage that holds still).
+    A vertex is still (weight 1 for the background) when it lies farther than its anchor
+    distance from every control's prescribed points, ``anchor`` degrees plus
+    :data:`ANCHOR_GROWTH` times the largest distance the control's map moves one of them (a
+    point dragged far, a line bent much, reaches farther than a cage that holds still), and
+    inside no cage. A vertex within :data:`~omniwidget.core.constraints.POINT_HOLD` of a
+    point handle's target has weight 1 for that point's control.
+
+    Returns
+    -------
+    constraints : Constraints
+    fixed : ndarray of int64, shape (f,)
+        Mesh vertices.
+    values : ndarray of float64, shape (f, k + 1)
+        Their weights.
     """
     from scipy.spatial import cKDTree
+
+    from .constraints import POINT_HOLD
 
     owner = np.argmax(constraints.values, axis=1)
     still = np.ones(len(vertices), dtype=bool)
@@ -243,9 +262,52 @@ def _with_background(constraints: Constraints, vertices: NDArray[np.float64], an
         reach = min(anchor + ANCHOR_GROWTH * float(np.max(moved)), 180.0)
         distance, _ = cKDTree(points).query(vertices, distance_upper_bound=2.0 * math.sin(math.radians(reach) / 2.0))
         still &= ~np.isfinite(distance)
+    for inside, _ in insides:
+        still[inside] = False
+    k = len(constraints.controls) + 1
+    fixed, values = [np.flatnonzero(still)], [np.tile(np.eye(k)[-1], (int(still.sum()), 1))]
+    chord = 2.0 * math.sin(math.radians(POINT_HOLD) / 2.0)
+    for c, centre in constraints.disks:
+        held = np.flatnonzero(np.linalg.norm(vertices - centre, axis=1) <= chord * (1 + 1e-9))
+        fixed.append(held)
+        values.append(np.tile(np.eye(k)[c], (len(held), 1)))
     background = Control(Moebius.identity(), BACKGROUND, "the still background")
-    values = np.hstack([constraints.values, np.zeros((len(constraints.values), 1))])
-    return replace(constraints, controls=(*constraints.controls, background), values=values), np.flatnonzero(still)
+    prescribed = np.hstack([constraints.values, np.zeros((len(constraints.values), 1))])
+    constraints = replace(constraints, controls=(*constraints.controls, background), values=prescribed)
+    return constraints, np.concatenate(fixed), np.vstack(values)
+
+
+def _cage_insides(constraints: Constraints, vertices: NDArray[np.float64]) -> list[tuple[NDArray[np.int64], NDArray[np.bool_]]]:
+    """Per cage, the mesh vertices inside its output polygon and the controls that may have weight there.
+
+    Those are the cage's own controls and any control with a prescribed point inside (a
+    handle inside the cage); every other control's weight inside is set to 0 after the solve
+    (:func:`_carry_insides`), so a cage carries its inside by its own maps.
+    """
+    from .quality import inside_polygon
+
+    lonlat = coords.xyz_to_lonlat(vertices)
+    prescribed = coords.xyz_to_lonlat(constraints.points)
+    out = []
+    for own, polygon in constraints.cages:
+        inside = np.flatnonzero(inside_polygon(lonlat, polygon))
+        keep = np.zeros(len(constraints.controls) + 1, dtype=bool)  # with the background's column
+        keep[list(own)] = True
+        within = inside_polygon(prescribed, polygon)
+        keep[: len(constraints.controls)] |= (np.abs(constraints.values[within]) > 0).any(axis=0)
+        out.append((inside, keep))
+    return out
+
+
+def _carry_insides(weights: NDArray[np.float64], insides: list[tuple[NDArray[np.int64], NDArray[np.bool_]]]) -> NDArray[np.float64]:
+    """Normalised weights with only the allowed controls inside each cage (their rows renormalised)."""
+    weights = weights.copy()
+    for inside, keep in insides:
+        rows = weights[inside] * keep
+        total = rows.sum(axis=1, keepdims=True)
+        even = keep / keep.sum()
+        weights[inside] = np.where(total > 1e-12, rows / np.maximum(total, 1e-300), even)
+    return weights
 
 
 def ease_background(weights: NDArray[np.float64], power: float = BACKGROUND_EASE) -> NDArray[np.float64]:
@@ -309,6 +371,24 @@ def _inside_fixed_cages(handles: Handles) -> list[str]:
                     f"handles[{j}] ({other.kind}) moves what handles[{i}] (cage) holds still: the cage's inside cannot stay "
                     "where it is; move the handle out of the cage, or give the cage targets"
                 )
+    return found
+
+
+def _pole_lines(constraints: Constraints, background: bool) -> list[str]:
+    """One warning per rectified line that passes over or close to a pole (:data:`~omniwidget.core.constraints.POLE_LATITUDE`)."""
+    found = []
+    for i, top in constraints.near_pole:
+        where = f"handles[{i}] (line) passes {90 - abs(top):.1f}° from the {'north' if top > 0 else 'south'} pole"
+        if background:
+            found.append(
+                f"{where}: it is kept as it is, already as straight as the panorama can show it (along the meridians "
+                "through its ends); eq. (4) would swing its middle round the pole and twist the panorama"
+            )
+        else:
+            found.append(
+                f"{where}: eq. (4) swings its middle round the pole and twists the panorama (the paper's method, "
+                '"anchor": null); give it "rectify": false, or use the still background, which keeps it as it is'
+            )
     return found
 
 
@@ -456,6 +536,7 @@ def warp(
 
     constraints = build_constraints(handles, samples=samples)
     lap("constraints")
+    problems_before = _pole_lines(constraints, handles.options.anchor is not None)
     maps = [c.moebius for c in constraints.controls]
     single = maps[0] if maps else Moebius.identity()
     # one map for everything; with a still background only if that map is the identity
@@ -464,7 +545,11 @@ def warp(
         inverse = grid_inverse(single.inverse)
         lap("resampling")
         no_folds = FoldOver(np.zeros(out.shape[:2], dtype=bool), 0.0)  # a Möbius map is one-to-one
-        return Result(out, handles, constraints, None, None, None, None, None, inverse, timings, (), image.shape[1], no_folds)
+        for p in problems_before if warn else ():
+            warnings.warn(p, BlendWarning, stacklevel=2)
+        return Result(
+            out, handles, constraints, None, None, None, None, None, inverse, timings, tuple(problems_before), image.shape[1], no_folds
+        )
 
     from . import _kernels
     from .bbw import bbw, normalize_rows
@@ -473,25 +558,27 @@ def warp(
     from .mesh import adaptive_mesh
     from .sampled import coarse_step, sampled_coordinates
 
-    problems_before = _inside_fixed_cages(handles) + _crossing_lines(constraints)
+    problems_before += _inside_fixed_cages(handles) + _crossing_lines(constraints)
     mesh = adaptive_mesh(constraints.points)
     lap("mesh")
-    still = np.empty(0, dtype=np.int64)
+    fixed, fixed_values, insides = np.empty(0, dtype=np.int64), None, []
     if handles.options.anchor is not None:
-        constraints, still = _with_background(constraints, mesh.vertices, handles.options.anchor)
+        insides = _cage_insides(constraints, mesh.vertices)
+        constraints, fixed, fixed_values = _with_background(constraints, mesh.vertices, handles.options.anchor, insides)
         maps.append(Moebius.identity())
     b, bc, problems = _merge_duplicates(mesh.sample_index, constraints.values, constraints.controls)
-    still = np.setdiff1d(still, b)
-    if len(still):  # weight 1 for the background there, 0 for every handle
-        b = np.concatenate([b, still])
-        bc = np.vstack([bc, np.tile(np.eye(bc.shape[1])[-1], (len(still), 1))])
+    extra = ~np.isin(fixed, b)
+    if extra.any():  # the background's still vertices and the points' disks
+        fixed, first = np.unique(fixed[extra], return_index=True)
+        b = np.concatenate([b, fixed])
+        bc = np.vstack([bc, fixed_values[extra][first]])
     problems = problems_before + problems
     raw = _previous_weights(previous, mesh.vertices, mesh.faces, b, bc)
     if raw is None:
         raw = bbw(mesh.vertices, mesh.faces, b, bc, start=_warm_start(previous, constraints, mesh.vertices))
     weights = normalize_rows(raw)
     if handles.options.anchor is not None:
-        weights = ease_background(weights)
+        weights = ease_background(_carry_insides(weights, insides), BACKGROUND_EASE)
     lap("weights")
     inverses = [m.inverse for m in maps]
     if _kernels.available():
