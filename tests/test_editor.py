@@ -29,6 +29,27 @@ def decoded(data: bytes) -> np.ndarray:
     return image
 
 
+@pytest.fixture(autouse=True)
+def _quality_measured_before_the_next_test(monkeypatch):
+    """The editors a test makes finish measuring their results' quality before the next test starts.
+
+    Each editor measures in a thread of its own, but ``Result.quality`` is a
+    ``functools.cached_property``, whose lock Python 3.11 shares among all instances: the
+    measurements left running by earlier tests would queue in front of a later test's.
+    """
+    made = []
+    init = Editor.__init__
+
+    def recording(self, *args, **kwargs):
+        made.append(self)
+        init(self, *args, **kwargs)
+
+    monkeypatch.setattr(Editor, "__init__", recording)
+    yield
+    for ed in made:
+        ed._quality.wait(120)
+
+
 @pytest.fixture
 def editor():
     ed = Editor(ow.sample_path())
@@ -273,6 +294,30 @@ def test_folds_and_conflicts_are_reported_with_the_handles_named():
     assert status["conflicts"] == [0, 1]
     overlay = decoded(ed.folds)
     assert overlay.shape == (512, 1024, 4) and (overlay[:, :, 3] > 0).mean() == pytest.approx(ed.preview_result.folds.mask.mean())
+
+
+def test_a_line_over_a_pole_kept_as_it_is_is_listed_in_the_status_and_not_as_a_conflict(editor):
+    """With the still background a rectified line over a pole is kept (identity map): ``status["kept"]`` names it."""
+    over = {"kind": "line", "start": [0.0, 60.0], "end": [180.0, 60.0]}  # rectify: true, right over the north pole
+    near = {"kind": "line", "start": [-30.0, 70.0], "end": [30.0, 70.0]}  # climbs to 72.9°: rectified as usual
+    editor.handles = doc(near, {**WINDOW_TOP, "rectify": True}, over)
+    status = editor.wait()
+    assert status["state"] == "idle" and status["kept"] == [2]
+    (warning,) = [w for w in status["warnings"] if w.startswith("handles[2] (line) passes 0.0° from the north pole")]
+    assert "it is kept as it is" in warning
+    assert 2 not in status["conflicts"]  # drawn as kept, not as a conflict
+    assert ow.core.coords.angular_distance(editor.outputs[2], editor.document.handles[2].control_points()).max() < 1e-6  # kept
+    assert all(c.moebius.is_identity() for c in editor.preview_result.controls if c.handle == 2)
+    # the south pole too, and indices follow the document
+    editor.handles = doc({"kind": "line", "start": [-40.0, -70.0], "end": [140.0, -75.0]}, near)
+    assert editor.wait()["kept"] == [0]
+    # the paper's method ("anchor": null) rectifies it all the same (and folds): nothing is kept, its warning is a conflict
+    editor.handles = doc(near, over, anchor=None)
+    status = editor.wait()
+    assert status["kept"] == [] and 1 in status["conflicts"]
+    assert any(w.startswith("handles[1] (line) passes 0.0° from the north pole") for w in status["warnings"])
+    editor.handles = doc(near)
+    assert editor.wait()["kept"] == []
 
 
 def test_full_size_on_demand(editor):

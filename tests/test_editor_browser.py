@@ -4,7 +4,10 @@ One notebook, one story: draw a line over the bent top edge of the window wall i
 bundled panorama, check the kernel holds it where it was drawn, rectify all lines, see the
 result change and measure the line straight; zoom and fit; draw a cage (and drop one with
 Esc); turn and zoom a point by its arrow and undo it with Ctrl+Z; then load a 12-handle
-scene and time mouse release to new image on screen.
+scene and time mouse release to new image on screen. Then the default mode (the still
+background) through the mouse: an arrow tip dragged to scale 2 magnifies the result 2x at
+the point, a large cage dragged carries its inside rigidly, and a line over the pole is kept
+as it is, drawn dash-dot in green with its warning on hover.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import pytest
 
 import omniwidget as ow
 from omniwidget.core import coords
+from omniwidget.core.handles import PointHandle
 from omniwidget.widget import saved_handles
 from tests import browser_harness as bh
 
@@ -435,4 +439,172 @@ def test_a_kernel_error_mid_edit_and_a_kernel_restart_lose_no_handles(jupyter_se
         finally:
             fresh.stop_channels()
         nb.screenshot("editor_restored")
+        assert nb.console_errors() == [], "\n".join(nb.console_errors())
+
+
+# --- the default mode (the still background): what the editor's drags give in the kernel -------------------
+# measured in the kernel on ed.result (the panorama's own 1024 x 512), after a drag with the mouse in the transform stage
+
+MAGNIFICATION = """
+import math
+import numpy as np
+from omniwidget.core import coords, quality
+
+def _frame(lonlat):  # rows: the unit vector and its east and north directions
+    east, north = coords.local_frame(lonlat)
+    return np.stack([coords.lonlat_to_xyz(lonlat), east, north])
+
+def _plane(lonlat, frame):  # gnomonic (east, north) about frame[0]
+    local = coords.lonlat_to_xyz(lonlat) @ frame.T
+    return local[..., 1:] / local[..., :1]
+
+def magnification(result, index):
+    '''How much the result magnifies at a point handle's target: central differences of the inverse map over +-2 output pixels.'''
+    handle = result.handles.handles[index]
+    step = math.tan(math.radians(2 * 360.0 / result.image.shape[1]))
+    out = _frame(handle.final)
+    stencil = coords.xyz_to_lonlat(out[0] + (step * np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])) @ out[1:])
+    shown = _plane(result.inverse_points(stencil), _frame(result.inverse_points(np.asarray(handle.final, float))))
+    jacobian = np.stack([shown[0] - shown[1], shown[2] - shown[3]], axis=1) / (2 * step)  # input per output
+    return 1.0 / math.sqrt(np.linalg.det(jacobian))
+"""
+
+
+def test_an_arrow_tip_dragged_to_scale_2_magnifies_the_result_2x_at_the_point(jupyter_server, browser):
+    """A point's east arrow tip dragged (transform stage) to where scale 2 puts it: the handle zooms 2x, and so does the result."""
+    bh.write_notebook(jupyter_server.root / "arrow.ipynb", NOTEBOOK)
+    with bh.NotebookPage(browser, jupyter_server, "arrow.ipynb") as nb:
+        nb.run_all()
+        nb.wait_for_output(".ow-editor")
+        generation = wait_idle(nb, 0, "the first result on screen")
+        page, client = nb.page, nb.kernel_client()
+        line = {"kind": "line", "start": list(WINDOW_TOP[0]), "end": list(WINDOW_TOP[1]), "rectify": True}
+        bh.run_in_kernel(client, f"ed.handles = {{'handles': [{line!r}, {{'kind': 'point', 'position': [100.0, -10.0]}}]}}")
+        generation = wait_idle(nb, generation, "the result with the line and the point")
+        nb.output('[data-stage="transform"]').click()
+        point = ow.Handles.from_dict(kernel_json(client, "ed.handles")).handles[1]
+        assert point.scale == 1.0 and point.rotation == 0.0
+        _, east, _ = kernel_json(client, "ed.outputs[1]")
+        assert coords.angular_distance(east, point.target_points()[1]) < 1e-6
+        # the tip at scale 2: twice the arrow's tan(length / 2) in the point's chart (with_arrow_tip inverts it)
+        tip = PointHandle(point.position, scale=2.0).target_points()[1]
+        assert point.with_arrow_tip(tip).scale == pytest.approx(2.0, rel=1e-9)
+        result = Pane(nb, "result")
+        drag(page, [result.at(east), result.at((east[0] + 15.0, east[1] + 1.0)), result.at(tip)])
+        moved = bh.wait_until(
+            lambda: (lambda h: h if h["scale"] != 1.0 else None)(kernel_json(client, "ed.handles['handles'][1]")),
+            timeout=20,
+            description="the arrow's drag in the kernel",
+        )
+        wait_idle(nb, kernel_json(client, "ed._generation") - 1, "the result with the point zoomed")
+        bh.run_in_kernel(client, MAGNIFICATION)
+        figures = kernel_json(
+            client,
+            "(lambda r, f: {'scale': r.handles.handles[1].scale, 'rotation': r.handles.handles[1].rotation, 'width': r.image.shape[1],"
+            " 'magnification': magnification(r, 1), 'zoom_error': f.zoom_error, 'rotation_error': f.rotation_error,"
+            " 'centre_px': f.centre_px})(ed.result, quality.point_fidelity(ed.result, 1))",
+        )
+        print(f"\narrow tip dragged to scale 2: {figures}")
+        assert figures["scale"] == moved["scale"]
+        assert abs(figures["scale"] / 2.0 - 1.0) < 0.01, figures  # the handle zooms 2x, within 1%
+        assert abs(figures["magnification"] / 2.0 - 1.0) < 0.01, figures  # and the result magnifies 2.00x at its centre
+        assert figures["zoom_error"] < 0.01 and figures["rotation_error"] < 0.1 and figures["centre_px"] < 0.25, figures
+        assert nb.console_errors() == [], "\n".join(nb.console_errors())
+
+
+CAGE = {"kind": "cage", "vertices": [[-70.0, -5.0], [-30.0, -5.0], [-30.0, -45.0], [-70.0, -45.0]]}  # about 40° across
+
+
+def test_a_large_cage_dragged_carries_its_inside_rigidly(jupyter_server, browser):
+    """A 40° cage (with a rectified line elsewhere) dragged by its edge in the transform stage: its inside moves as the cage does."""
+    bh.write_notebook(jupyter_server.root / "cage.ipynb", NOTEBOOK)
+    with bh.NotebookPage(browser, jupyter_server, "cage.ipynb") as nb:
+        nb.run_all()
+        nb.wait_for_output(".ow-editor")
+        generation = wait_idle(nb, 0, "the first result on screen")
+        page, client = nb.page, nb.kernel_client()
+        line = {"kind": "line", "start": list(WINDOW_TOP[0]), "end": list(WINDOW_TOP[1]), "rectify": True}
+        bh.run_in_kernel(client, f"ed.handles = {{'handles': [{line!r}, {CAGE!r}]}}")
+        generation = wait_idle(nb, generation, "the result with the line and the cage")
+        nb.output('[data-stage="transform"]').click()
+        result = Pane(nb, "result")
+        grab = coords.geodesic_midpoint(*CAGE["vertices"][:2])  # on the cage's top edge: the whole cage moves
+        drag(page, [result.at(grab), result.at(grab + [3.0, 1.5]), result.at(grab + [6.0, 3.0])])
+        cage = bh.wait_until(
+            lambda: (lambda h: h if h.get("targets") else None)(kernel_json(client, "ed.handles['handles'][1]")),
+            timeout=20,
+            description="the cage's drag in the kernel",
+        )
+        moved = coords.angular_distance(cage["vertices"], cage["targets"])
+        assert 3.0 < moved.min() and moved.max() < 12.0, moved  # a few degrees, every vertex
+        wait_idle(nb, kernel_json(client, "ed._generation") - 1, "the result with the cage moved")
+        bh.run_in_kernel(
+            client,
+            "import numpy as np\nfrom omniwidget.core import coords, quality\n"
+            "r, c = ed.result, ed.document.handles[1]\n"
+            "R = c.rotation()  # the cage's best rotation: its motion\n"
+            "turned = coords.xyz_to_lonlat(coords.lonlat_to_xyz(np.asarray(c.vertices)) @ R.T)\n"
+            "figures = {'width': r.image.shape[1], 'fidelity_px': quality.cage_fidelity(r, 1, rotation=R),\n"
+            "           'rigid_deg': float(coords.angular_distance(turned, c.finals).max())}",
+        )
+        figures = kernel_json(client, "figures")
+        print(f"\ncage of 40° dragged by {moved.mean():.2f}°: {figures}")
+        assert figures["rigid_deg"] < 1e-6, figures  # the editor moved it rigidly (one rotation of the sphere)
+        assert figures["fidelity_px"] < 0.5, figures  # every output pixel inside the final polygon shows R.T @ q
+        assert nb.console_errors() == [], "\n".join(nb.console_errors())
+
+
+POLE_LINE = {"kind": "line", "start": [0.0, 60.0], "end": [180.0, 60.0]}  # rectify: true; right over the north pole
+KEPT_GREEN = np.array([0x58, 0xD1, 0x30])  # BGR of the editor's COLORS.kept, #30d158
+
+
+def kept_pattern(pane: Pane, shot: np.ndarray) -> np.ndarray:
+    """Along the pole line's straight part on screen (lon 0, lat 63-87), per row: whether it is drawn in the kept line's green."""
+    box = pane.canvas.bounding_box()
+    x = pane.at((0.0, 75.0))[0] - box["x"]
+    rows = [int(round(pane.at((0.0, lat))[1] - box["y"])) for lat in (87.0, 63.0)]
+    strip = shot[rows[0] : rows[1] + 1, int(round(x)) - 2 : int(round(x)) + 3].astype(int)
+    return (np.abs(strip - KEPT_GREEN).max(axis=2) < 60).any(axis=1)
+
+
+def test_a_line_over_the_pole_is_kept_drawn_dashed_and_its_warning_shows_on_hover(jupyter_server, browser):
+    """With the still background a rectified line over the pole is kept as it is: listed, drawn dash-dot in green, explained on hover."""
+    bh.write_notebook(jupyter_server.root / "pole.ipynb", NOTEBOOK)
+    with bh.NotebookPage(browser, jupyter_server, "pole.ipynb") as nb:
+        nb.run_all()
+        nb.wait_for_output(".ow-editor")
+        generation = wait_idle(nb, 0, "the first result on screen")
+        page, client = nb.page, nb.kernel_client()
+        line = {"kind": "line", "start": list(WINDOW_TOP[0]), "end": list(WINDOW_TOP[1]), "rectify": True}
+        bh.run_in_kernel(client, f"ed.handles = {{'handles': [{line!r}, {POLE_LINE!r}]}}")
+        wait_idle(nb, generation, "the result with the pole line")
+        status = kernel_json(client, "ed.status")
+        assert status["kept"] == [1] and 1 not in status["conflicts"], status
+        (warning,) = [w for w in status["warnings"] if w.startswith("handles[1] (line) passes")]
+        assert "from the north pole: it is kept as it is" in warning, warning
+        shown = [w.inner_text() for w in nb.output(".ow-warning").all()]
+        assert f"⚠ {warning}" in shown, shown  # under the image with the others
+
+        for stage, name in (("draw", "input"), ("transform", "result")):
+            nb.output(f'[data-stage="{stage}"]').click()
+            bh.wait_until(lambda name=name: nb.output(f'[data-pane="{name}"].ow-pane').first.is_visible(), timeout=10, description=stage)
+            pane = Pane(nb, name)
+            drawn = kept_pattern(pane, pane.pixels())
+            nb.output('[data-action="handles"]').click()  # the same strip without the handles: none of that green in the image
+            bare = kept_pattern(pane, Pane(nb, name).pixels())
+            nb.output('[data-action="handles"]').click()
+            pattern = "".join("#" if d else "." for d in drawn)
+            dashes = [len(run) for run in pattern.split(".") if run]
+            print(f"\n{stage} stage: the pole line green on {drawn.mean():.0%} of {drawn.size} rows: {pattern}")
+            assert bare.mean() < 0.05, f"{bare.mean():.0%} of the strip is green without the handles"
+            assert 0.3 < drawn.mean() < 0.85 and len(dashes) >= 4, pattern  # dashed: on and off
+            # dash-dot (10, 4, 2, 4), not the conflicts' even dashes (6, 4): long dashes and dots alternate
+            assert max(dashes) >= 8 and min(dashes) <= 4, pattern
+
+            # hovering the line puts its warning in the canvas's tooltip; elsewhere there is none
+            page.mouse.move(*pane.at((0.0, 75.0)))
+            assert pane.canvas.get_attribute("title") == warning
+            page.mouse.move(*pane.at((-100.0, -30.0)))
+            assert (pane.canvas.get_attribute("title") or "") == ""
+        nb.screenshot("editor_pole_line")
         assert nb.console_errors() == [], "\n".join(nb.console_errors())

@@ -229,6 +229,13 @@ def _count(doc: Handles) -> str:
     return f"{len(doc)} handle" if len(doc) == 1 else f"{len(doc)} handles"
 
 
+def _kept_lines(result: Any) -> list[int]:
+    """Rectified lines over or close to a pole that the still background keeps as they are (identity map)."""
+    if result.handles.options.anchor is None:
+        return []  # the paper's method rectifies them all the same (and warns: a conflict)
+    return sorted(int(i) for i, _ in result.constraints.near_pole)
+
+
 def _finite_outputs(outputs: list[list[list[float]]]) -> bool:
     return all(np.isfinite(points).all() for points in outputs if points)
 
@@ -297,7 +304,9 @@ class Editor(anywidget.AnyWidget):
         handles are kept whatever fails, with the edit that could not be computed, and the
         last good result stays on screen), ``notice`` (the autosave: handles restored from
         it, a file that could not be read or written), ``warnings`` (conflicts and
-        fold-overs, naming handles), ``conflicts`` (their indices), ``fold_area`` (share of
+        fold-overs, naming handles), ``conflicts`` (their indices), ``kept`` (the indices of
+        rectified lines over or close to a pole that the still background keeps as they are:
+        drawn dashed in green, their warning shown on hover), ``fold_area`` (share of
         the sphere shown turned over), ``seconds`` and ``width`` of the last computation.
     autosave_path : Path or None
         The autosave file (see ``autosave``), None when autosave is off.
@@ -536,7 +545,9 @@ class Editor(anywidget.AnyWidget):
                     self.status = {**self.status, "state": "error", "message": message, "error": message}
             return
         seconds = time.perf_counter() - start
-        conflicts = sorted({int(i) for w in result.warnings for i in _HANDLE_NAME.findall(w)})
+        kept = _kept_lines(result)
+        pole = tuple(f"handles[{i}] (line) passes " for i in kept)  # their warnings say why; they are no conflict
+        conflicts = sorted({int(i) for w in result.warnings if not w.startswith(pole) for i in _HANDLE_NAME.findall(w)})
         with self._lock:
             if generation != self._generation:
                 return  # a newer edit is on its way: this result is stale
@@ -552,6 +563,7 @@ class Editor(anywidget.AnyWidget):
                     "message": f"{result.image.shape[1]} x {result.image.shape[0]} in {seconds:.2f} s",
                     "warnings": list(result.warnings),
                     "conflicts": conflicts,
+                    "kept": kept,
                     "fold_area": float(result.folds.area),
                     "seconds": seconds,
                     "width": int(result.image.shape[1]),

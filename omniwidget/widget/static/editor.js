@@ -16,7 +16,8 @@ const ARROW_LENGTH = 0.3; // radians from a point's centre to its arrow tips (ha
 const HIT = 9; // px: how close a click must be to a control point
 const HIT_EDGE = 6; // px: ... to a line or cage edge
 const MIN_LINE = 0.05; // degrees: shorter drags do not make a line
-const COLORS = { point: "#22c7ff", line: "#ff453a", cage: "#ffffff", selected: "#ffd60a", conflict: "#ff9f0a" };
+const COLORS = { point: "#22c7ff", line: "#ff453a", cage: "#ffffff", selected: "#ffd60a", conflict: "#ff9f0a", kept: "#30d158" };
+const DASHES = { conflict: [6, 4], kept: [10, 4, 2, 4] }; // a line kept as it is (over a pole): dash-dot
 const TOOLS = [
   ["select", "Select", "V", "select, move, pan"],
   ["point", "Point", "P", "click to place a point handle"],
@@ -496,13 +497,15 @@ function render({ model, el: host }) {
   function drawHandles(p, offsets) {
     const ctx = p.ctx;
     const conflicts = new Set(status().conflicts || []);
+    const kept = new Set(status().kept || []);
     const sel = selected();
     items().forEach((h, i) => {
       const pts = positions(i, p.kind);
       const isSel = i === sel;
+      const look = conflicts.has(i) ? "conflict" : kept.has(i) ? "kept" : null;
       ctx.lineWidth = isSel ? 3 : 2;
-      ctx.strokeStyle = conflicts.has(i) ? COLORS.conflict : COLORS[h.kind];
-      ctx.setLineDash(conflicts.has(i) ? [6, 4] : []);
+      ctx.strokeStyle = look ? COLORS[look] : COLORS[h.kind];
+      ctx.setLineDash(look ? DASHES[look] : []);
       for (const c of curves(h, pts)) strokePath(p, c, offsets);
       ctx.setLineDash([]);
       ctx.lineWidth = 1.5;
@@ -611,17 +614,30 @@ function render({ model, el: host }) {
     }
     if (best) return best;
     for (const i of order) {
-      for (const c of curves(items()[i], positions(i, p.kind))) {
-        const s = c.map(toScreen);
-        for (let j = 1; j < s.length; j++) {
-          const ax = nearestX(s[j - 1][0], x);
-          const bx = ax + (nearestX(s[j][0], ax) - ax);
-          const d = segmentDistance(x, y, ax, s[j - 1][1], bx, s[j][1]);
-          if (d <= HIT_EDGE) return { index: i, part: -1, d };
-        }
-      }
+      if (onCurve(p, i, x, y)) return { index: i, part: -1 };
     }
     return null;
+  }
+
+  // Whether (x, y) is within HIT_EDGE of handle i's line, arrows or cage edges on pane p.
+  function onCurve(p, i, x, y) {
+    for (const c of curves(items()[i], positions(i, p.kind))) {
+      const s = c.map(toScreen);
+      for (let j = 1; j < s.length; j++) {
+        const ax = nearestX(s[j - 1][0], x);
+        const bx = ax + (nearestX(s[j][0], ax) - ax);
+        if (segmentDistance(x, y, ax, s[j - 1][1], bx, s[j][1]) <= HIT_EDGE) return true;
+      }
+    }
+    return false;
+  }
+
+  // Over a line the kernel keeps as it is, the canvas's tooltip gives the warnings naming it.
+  function hover(p, x, y) {
+    const kept = state.showHandles ? status().kept || [] : [];
+    const i = kept.find((j) => j < items().length && onCurve(p, j, x, y));
+    const title = i === undefined ? "" : (status().warnings || []).filter((w) => w.includes(`handles[${i}]`)).join("\n");
+    if (p.canvas.title !== title) p.canvas.title = title;
   }
 
   function segmentDistance(px, py, ax, ay, bx, by) {
@@ -714,7 +730,9 @@ function render({ model, el: host }) {
     if (state.drawing) {
       state.drawing.cursor = at;
       draw();
+      return;
     }
+    hover(p, x, y);
   }
 
   // Control points of the dragged handle with the grabbed part at `at`.
