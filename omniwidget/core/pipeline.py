@@ -13,7 +13,8 @@ import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from functools import cached_property
+
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -41,6 +42,25 @@ __all__ = ["BACKGROUND", "BACKGROUND_EASE", "FOLD_WARNING_AREA", "BlendWarning",
 #: Fold-overs covering at least this share of the sphere are reported as a BlendWarning
 #: (1e-5 is about 20 pixels at 2048 x 1024); smaller ones only show in ``Result.folds``.
 FOLD_WARNING_AREA = 1e-5
+
+
+class _measured_once:
+    """A property computed when first asked and kept in the instance, like :func:`functools.cached_property`.
+
+    Without its lock: up to Python 3.11 that lock is one per class, so one result's quality
+    measured in the editor's thread made every other result's wait (a notebook with several
+    editors). Two threads asking at once may both compute it; the figures are the same.
+    """
+
+    def __init__(self, fn: Any) -> None:
+        self.fn, self.name, self.__doc__ = fn, fn.__name__, fn.__doc__
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:
+            return self
+        if self.name not in obj.__dict__:
+            obj.__dict__[self.name] = self.fn(obj)
+        return obj.__dict__[self.name]
 
 
 class BlendWarning(UserWarning):
@@ -161,7 +181,7 @@ class Result:
             q = m.apply_xyz(step / np.linalg.norm(step, axis=-1, keepdims=True))
         return coords.xyz_to_lonlat(q)
 
-    @cached_property
+    @_measured_once
     def quality(self) -> Summary:
         """Every quality figure of this warp (:func:`omniwidget.core.quality.summary`), measured when first asked.
 
@@ -173,7 +193,7 @@ class Result:
 
         return summary(self)
 
-    @cached_property
+    @_measured_once
     def _inverse_map(self) -> NDArray[np.float64]:
         inverse = inverse_lonlat(self.inverse, self.image.shape[1])
         inverse.flags.writeable = False  # handed out as it is (float64): nobody may spoil the cache
