@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "angular_distance",
     "arc_max_abs_lat",
+    "best_rotation",
     "geodesic",
     "geodesic_midpoint",
     "grid_lonlat",
@@ -407,3 +408,28 @@ def arc_max_abs_lat(start: ArrayLike, end: ArrayLike) -> float:
         top /= np.linalg.norm(top)
         candidates += [c for c in (top, -top) if np.dot(np.cross(p, c), normal) >= 0 and np.dot(np.cross(c, q), normal) >= 0]
     return float(np.max(np.abs(xyz_to_lonlat(np.array(candidates))[:, 1])))
+
+
+def best_rotation(source: ArrayLike, target: ArrayLike) -> NDArray[np.float64]:
+    """The rotation of the sphere that best sends points onto others (Kabsch: least squares, never a reflection).
+
+    Parameters
+    ----------
+    source, target : array_like, shape (n, 2)
+        ``[lon, lat]`` in degrees, ``n >= 2``, matched in order.
+
+    Returns
+    -------
+    ndarray of float64, shape (3, 3)
+        The proper rotation ``R`` (``det R = +1``) minimising ``sum |R a_i - b_i|²`` over the
+        points' unit vectors ``a_i``, ``b_i``; ``R @ a`` acts on column vectors.
+    """
+    a = np.asarray(source, dtype=np.float64)
+    b = np.asarray(target, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 2 or len(a) < 2 or a.shape != b.shape:
+        raise ValueError(f"expected source and target of one shape (n >= 2, 2), got {a.shape} and {b.shape}")
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise ValueError("source and target must be finite [lon, lat] positions")
+    u, _, vt = np.linalg.svd(lonlat_to_xyz(a).T @ lonlat_to_xyz(b))
+    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+    return vt.T @ np.diag([1.0, 1.0, d]) @ u.T

@@ -240,17 +240,11 @@ class CageHandle:
         return [_shortest_turn(v, t) @ whole for v, t in zip(turned, coords.lonlat_to_xyz(np.asarray(self.finals, np.float64)), strict=True)]
 
     def rotation(self) -> NDArray[np.float64]:
-        """The rotation of the sphere that best moves the vertices to their targets, (3, 3).
+        """The rotation of the sphere that best moves the vertices to their targets, (3, 3) (:func:`coords.best_rotation`).
 
-        The orthogonal Procrustes solution (Kabsch) on the unit vectors, without reflection:
-        ``R`` minimising ``sum |R v - t|^2``; exactly the motion for a cage moved rigidly,
-        the identity for a cage that stays.
+        Exactly the motion for a cage moved rigidly, the identity for a cage that stays.
         """
-        v = coords.lonlat_to_xyz(np.asarray(self.vertices, np.float64))
-        t = coords.lonlat_to_xyz(np.asarray(self.finals, np.float64))
-        u, _, vt = np.linalg.svd(t.T @ v)
-        d = np.sign(np.linalg.det(u @ vt)) or 1.0
-        return u @ np.diag([1.0, 1.0, d]) @ vt
+        return coords.best_rotation(self.vertices, self.finals)
 
 
 Handle = PointHandle | LineHandle | CageHandle

@@ -30,9 +30,9 @@ Faces are named by the room-frame axis they are perpendicular to: ``"west"`` (``
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
-from typing import Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,8 +40,13 @@ from numpy.typing import ArrayLike, NDArray
 from . import coords
 from ._checks import whole_number
 
+if TYPE_CHECKING:
+    from .handles import Handles, PointHandle
+
 __all__ = [
+    "FAMILIES",
     "close_pair",
+    "family_scene",
     "lined_room",
     "mark_lines",
     "FACE_COLORS",
@@ -120,18 +125,7 @@ class SceneLine:
         An arc can climb higher than both its endpoints, so besides them this checks the
         highest and lowest points of the whole great circle and keeps those on the arc.
         """
-        p, q = coords.lonlat_to_xyz([self.start, self.end])
-        normal = np.cross(p, q)
-        normal /= np.linalg.norm(normal)
-        candidates = [p, q]
-        # The top of the great circle: the north pole projected onto the circle's plane.
-        top = np.array([0.0, 0.0, 1.0]) - normal[2] * normal
-        if np.linalg.norm(top) > 1e-12:  # else the circle is the equator
-            top /= np.linalg.norm(top)
-            for c in (top, -top):
-                if np.dot(np.cross(p, c), normal) >= 0 and np.dot(np.cross(c, q), normal) >= 0:
-                    candidates.append(c)
-        return float(np.max(np.abs(coords.xyz_to_lonlat(np.array(candidates))[:, 1])))
+        return coords.arc_max_abs_lat(self.start, self.end)
 
 
 @dataclass(frozen=True)
@@ -308,7 +302,6 @@ def mark_lines(
     list of SceneLine
         At most ``count``, fewer if the scene has no more that fit.
     """
-    from .handles import LineHandle
     from .quality import straightness
 
     rng = np.random.default_rng(seed)
@@ -320,23 +313,63 @@ def mark_lines(
         for p in subdivide_line(line, piece)
         if straightness(coords.geodesic(p.start, p.end, t), width) >= min_bend
     ]
-    picked: list[SceneLine] = []
+
+    def clear(cloud: FloatArray) -> bool:
+        return all(coords.angular_distance(cloud[:, None], np.asarray(c, np.float64)[None]).min() >= r for c, r in keep_clear)
+
+    return _pick_lines([candidates[i] for i in rng.permutation(len(candidates))], count, separation, clear, t)
+
+
+def _line_cloud(line: SceneLine, t: FloatArray) -> FloatArray:
+    """A line's samples at parameters ``t`` and their eq. (4) images, ``[lon, lat]``, shape (2 len(t), 2)."""
+    from .handles import LineHandle
+
+    src = coords.geodesic(line.start, line.end, t)
+    return np.concatenate([src, LineHandle(line.start, line.end).moebius()(src)])
+
+
+def _pick_lines(
+    candidates: Iterable[Any],
+    count: int,
+    separation: float,
+    accept: Callable[[FloatArray], bool] | None = None,
+    t: FloatArray | None = None,
+    line_of: Callable[[Any], SceneLine | None] = lambda c: c,
+) -> list[Any]:
+    """The separation logic of :func:`mark_lines`: candidates taken in their order while they keep apart.
+
+    A candidate is kept when ``accept`` takes its cloud (:func:`_line_cloud`: its samples
+    and their eq. (4) images) and that cloud keeps ``separation`` degrees from every kept
+    line's cloud, except within ``2 * separation`` of an endpoint the two share.
+    ``line_of`` gives a candidate's line, or None to pass it over (so that costly
+    candidates can be made only when their turn comes).
+
+    Returns
+    -------
+    list
+        The candidates kept, at most ``count``, in their order.
+    """
+    t = np.linspace(0, 1, 60) if t is None else t
+    picked: list[Any] = []
+    lines: list[SceneLine] = []
     clouds: list[FloatArray] = []
-    for i in rng.permutation(len(candidates)):
+    for candidate in candidates:
         if len(picked) == count:
             break
-        line = candidates[i]
-        src = coords.geodesic(line.start, line.end, t)
-        cloud = np.concatenate([src, LineHandle(line.start, line.end).moebius()(src)])
-        ok = all(coords.angular_distance(cloud[:, None], np.asarray(c, np.float64)[None]).min() >= r for c, r in keep_clear)
-        for other, cloud_other in zip(picked, clouds, strict=True):
+        line = line_of(candidate)
+        if line is None:
+            continue
+        cloud = _line_cloud(line, t)
+        ok = accept is None or accept(cloud)
+        for other, cloud_other in zip(lines, clouds, strict=True):
             far = np.ones(len(cloud), dtype=bool)
             for end in (line.start, line.end):
                 if coords.angular_distance(np.array([other.start, other.end]), end).min() < 1e-6:
                     far &= coords.angular_distance(cloud, end) > 2 * separation
-            ok = ok and coords.angular_distance(cloud[far][:, None], cloud_other[None]).min() >= separation
+            ok = ok and coords.angular_distance(cloud[far][:, None], cloud_other[None]).min(initial=np.inf) >= separation
         if ok:
-            picked.append(line)
+            picked.append(candidate)
+            lines.append(line)
             clouds.append(cloud)
     return picked
 
@@ -416,6 +449,385 @@ def close_pair(
             if a.faces == b.faces and gap[0] < coords.angular_distance(arcs[i][:, None], arcs[j][None]).min() < gap[1]:
                 return a, b
     raise ValueError(f"the scene has no two grid lines of one face within {gap[0]} to {gap[1]} degrees of each other")
+
+
+# --- scene families ------------------------------------------------------------------
+
+#: The generated scene families of :func:`family_scene`; a family's index here seeds its rooms.
+FAMILIES: tuple[str, ...] = ("short", "long", "cage_small", "cage_large", "cage_fixed", "points", "mixed")
+
+#: Width (pixels) at which a family's candidate lines must bend: the handles do not depend on the width rendered.
+FAMILY_BEND_WIDTH = 2048
+#: Least bend of a marked line from its chord, pixels at :data:`FAMILY_BEND_WIDTH`.
+FAMILY_MIN_BEND = 5.0
+#: Highest ``|latitude|`` (degrees) anywhere on a marked line.
+FAMILY_MAX_ABS_LAT = 65.0
+
+
+def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Handles, dict[str, Any]]:
+    """A generated test scene of one family: a room of its own, its handles, and their ground truth.
+
+    Every seed gives another room: its size (3-9 x 3-8 m, 2.4-4 m high), grid spacing
+    (0.75, 1 or 1.25 m), the camera's place (anywhere in the middle 70% of the floor) and
+    height (0.7 m above the floor to 0.5 m below the ceiling), and the turn of the room
+    (any yaw), all drawn from ``np.random.default_rng((FAMILIES.index(family), seed))``.
+    The handles are drawn from the same generator, so they are the same at every
+    ``width``: lines are measured at :data:`FAMILY_BEND_WIDTH`, never at the width rendered.
+
+    Families (lines are pieces of the scene's edges and grid lines, each bent by at least
+    :data:`FAMILY_MIN_BEND` pixels at 2048 and within ±:data:`FAMILY_MAX_ABS_LAT`° of
+    latitude everywhere, keeping 8° from each other as :func:`mark_lines` does):
+
+    ``"short"``
+        4-8 lines of 15-50° of arc.
+    ``"long"``
+        3-5 lines of 50-150° of arc.
+    ``"cage_small"``
+        One cage 10-25° across (even seeds convex, a quadrilateral or pentagon; odd seeds
+        not, an L or an arrow) moved rigidly: its targets are its vertices turned by 2-8°
+        about a random axis. With it 0-2 lines of 15-40° at least 10° from the cage (from
+        its edges before and after the move, and never inside it).
+    ``"cage_large"``
+        The same with a cage 30-60° across (one seed in four up to 90°).
+    ``"cage_fixed"``
+        One cage 10-60° across that stays (no targets), convex or not, and 2-4 lines of
+        15-50° outside it, at least 5° from its edges; the first within 15° of them.
+    ``"points"``
+        1-3 point handles (scale 0.6-2.5, log-uniform; rotation ±30°; target 0-5° from the
+        position; ``|lat| <= 60``; 25° apart) and 0-3 lines of 15-50° at least 15° from
+        every point's position and target.
+    ``"mixed"``
+        One cage 15-40° across (moved rigidly or fixed, convex or not), 1-2 points and
+        3-5 lines of 15-50°, every handle at least 10° from the others.
+
+    Cages keep their vertices in order around the polygon, are at most 90° across (far
+    smaller than a hemisphere) and hold no point and no line.
+
+    Parameters
+    ----------
+    family : str
+        One of :data:`FAMILIES`.
+    seed : int
+        ``>= 0``; any seed makes a scene (0-39 are the benches').
+    width : int
+        Of the rendered panorama (:func:`synthetic_room`), even, ``>= 8``.
+
+    Returns
+    -------
+    scene : Scene
+        The room, rendered at ``width``.
+    handles : Handles
+        The handles, with the default options (``Options()``: rectify ``"all"``, the still
+        background on): lines first, then the cage, then the points.
+    truth : dict
+        The ground truth the measurements need:
+
+        - ``"family"`` (str), ``"seed"`` (int);
+        - ``"lines"``: the marked :class:`SceneLine` of each line handle, in order;
+        - ``"parents"``: for each, the full scene line it was cut from (a marked line
+          continues beyond its ends when it is shorter than its parent);
+        - ``"line_handles"``, ``"cage_handles"``, ``"point_handles"``: lists of int, the
+          handles' indices in ``handles.handles``;
+        - ``"rotations"``: for each cage, its rigid motion, a 3 x 3 float64 rotation
+          matrix acting on unit vectors (``targets = R @ vertices``; the identity for a
+          fixed cage);
+        - ``"convex"`` (list of bool) and ``"across"`` (list of float, degrees: the largest
+          distance between two vertices), for each cage.
+
+    Raises
+    ------
+    ValueError
+        For an unknown family, a negative or non-integer seed, or a bad width.
+
+    Examples
+    --------
+    ::
+
+        scene, doc, truth = family_scene("cage_small", 3, width=1024)
+        result = omniwidget.warp(scene.image, doc)
+        quality.cage_fidelity(result, truth["cage_handles"][0], truth["rotations"][0])
+    """
+    from .handles import CageHandle, Handles, LineHandle, Options
+
+    if not isinstance(family, str) or family not in FAMILIES:
+        raise ValueError(f"family must be one of {', '.join(FAMILIES)}, got {family!r}")
+    seed = whole_number(seed, "seed", 0)
+    width = whole_number(width, "width", 8)
+    rng = np.random.default_rng((FAMILIES.index(family), seed))
+    room = _room_parameters(rng)
+    scene = synthetic_room(width, **room)
+
+    lines: list[tuple[SceneLine, SceneLine]] = []
+    cages: list[_Cage] = []
+    points: list[PointHandle] = []
+    if family == "short":
+        lines = _family_lines(scene, rng, int(rng.integers(4, 9)), (15.0, 50.0))
+    elif family == "long":
+        lines = _family_lines(scene, rng, int(rng.integers(3, 6)), (50.0, 150.0), samples=120)
+    elif family in ("cage_small", "cage_large"):
+        if family == "cage_small":
+            across = rng.uniform(10.0, 25.0)
+        else:
+            across = rng.uniform(60.0, 90.0) if seed % 4 == 3 else rng.uniform(30.0, 60.0)
+        cage = _random_cage(rng, across, convex=seed % 2 == 0, moved=True)
+        cages.append(cage)
+        lines = _family_lines(scene, rng, int(rng.integers(0, 3)), (15.0, 40.0), accept=cage.clear_of(10.0))
+    elif family == "cage_fixed":
+        for _ in range(50):
+            cage = _random_cage(rng, rng.uniform(10.0, 60.0), convex=bool(rng.integers(0, 2)), moved=False)
+            first = _family_lines(scene, rng, 1, (15.0, 50.0), accept=cage.clear_of(5.0, within=15.0))
+            if first:
+                break
+        else:  # pragma: no cover - every room has grid lines near any cage
+            raise RuntimeError(f"no line found near a fixed cage for seed {seed}")
+        cages.append(cage)
+        more = _family_lines(scene, rng, int(rng.integers(1, 4)), (15.0, 50.0), accept=cage.clear_of(5.0), kept=[first[0][0]])
+        lines = first + more
+    elif family == "points":
+        points = _random_points(rng, int(rng.integers(1, 4)))
+        lines = _family_lines(scene, rng, int(rng.integers(0, 4)), (15.0, 50.0), accept=_clear_of_points(points, 15.0))
+    else:  # mixed
+        cage = _random_cage(rng, rng.uniform(15.0, 40.0), convex=bool(rng.integers(0, 2)), moved=bool(rng.integers(0, 2)))
+        cages.append(cage)
+        points = _random_points(rng, int(rng.integers(1, 3)), accept=cage.clear_of(10.0))
+        near_cage, near_points = cage.clear_of(10.0), _clear_of_points(points, 10.0)
+        lines = _family_lines(
+            scene, rng, int(rng.integers(3, 6)), (15.0, 50.0), accept=lambda cloud: near_cage(cloud) and near_points(cloud)
+        )
+
+    handles: list[Any] = [LineHandle(line.start, line.end) for line, _ in lines]
+    handles += [CageHandle(c.vertices, c.targets) for c in cages]
+    handles += points
+    n_lines, n_cages = len(lines), len(cages)
+    truth = {
+        "family": family,
+        "seed": seed,
+        "lines": [line for line, _ in lines],
+        "parents": [parent for _, parent in lines],
+        "line_handles": list(range(n_lines)),
+        "cage_handles": list(range(n_lines, n_lines + n_cages)),
+        "point_handles": list(range(n_lines + n_cages, len(handles))),
+        "rotations": [c.rotation for c in cages],
+        "convex": [c.convex for c in cages],
+        "across": [c.across for c in cages],
+    }
+    return scene, Handles(tuple(handles), Options()), truth
+
+
+def _room_parameters(rng: np.random.Generator) -> dict[str, Any]:
+    """A room's size, grid, camera and yaw (keyword arguments of :func:`synthetic_room`)."""
+    size = np.array([rng.uniform(3.0, 9.0), rng.uniform(3.0, 8.0), rng.uniform(2.4, 4.0)])
+    height = rng.uniform(0.7, size[2] - 0.5)  # above the floor
+    camera = (rng.uniform(-0.35, 0.35) * size[0], rng.uniform(-0.35, 0.35) * size[1], height - size[2] / 2)
+    return {
+        "size": tuple(float(v) for v in size),
+        "camera": tuple(float(v) for v in camera),
+        "yaw": float(rng.uniform(-180.0, 180.0)),
+        "grid": float(rng.choice([0.75, 1.0, 1.25])),
+    }
+
+
+def _sub_line(line: SceneLine, a: float, b: float) -> SceneLine:
+    """The part of ``line`` from ``a`` to ``b`` degrees of arc from its start (``0 <= a < b <= line.length``)."""
+    p, q = np.array(line.start_3d), np.array(line.end_3d)
+    u = p / np.linalg.norm(p)
+    v = q - np.dot(q, u) * u
+    v /= np.linalg.norm(v)
+    ends = [_ray_meets_line(math.cos(math.radians(phi)) * u + math.sin(math.radians(phi)) * v, p, q) for phi in (a, b)]
+    return _scene_line(ends[0], ends[1], line.kind, line.faces)
+
+
+def _family_lines(
+    scene: Scene,
+    rng: np.random.Generator,
+    count: int,
+    lengths: tuple[float, float],
+    *,
+    accept: Callable[[FloatArray], bool] | None = None,
+    kept: Sequence[SceneLine] = (),
+    samples: int = 60,
+) -> list[tuple[SceneLine, SceneLine]]:
+    """Up to ``count`` pieces of the scene's lines, ``lengths`` degrees long, each with the line it was cut from.
+
+    Each line is cut into consecutive pieces of one random length in ``lengths``, from a
+    random offset (a line no longer than that length is a piece whole). Pieces bent by at
+    least :data:`FAMILY_MIN_BEND` px at :data:`FAMILY_BEND_WIDTH`, within
+    :data:`FAMILY_MAX_ABS_LAT`, are taken in a random order and kept as :func:`mark_lines`
+    keeps them (:func:`_pick_lines`), also apart from the lines ``kept`` already.
+    """
+    from .quality import straightness
+
+    if count == 0:
+        return []
+    t = np.linspace(0.0, 1.0, samples)
+    cuts: list[tuple[SceneLine, float, float]] = []
+    for line in scene.lines:
+        total = line.length
+        if total < lengths[0]:
+            continue
+        size = float(rng.uniform(*lengths))
+        if total <= size:
+            cuts.append((line, 0.0, total))
+        else:
+            offset = float(rng.uniform(0.0, min(size, total - size)))
+            cuts += [(line, a, a + size) for a in offset + size * np.arange(int((total - offset) // size))]
+
+    def piece_of(cut: tuple[SceneLine, float, float]) -> SceneLine | None:
+        """The cut's piece if it may be marked, else None; made only when its turn comes."""
+        line, a, b = cut
+        piece = line if (a, b) == (0.0, line.length) else _sub_line(line, a, b)
+        if piece.max_abs_lat > FAMILY_MAX_ABS_LAT or not lengths[0] - 1e-9 <= piece.length <= lengths[1] + 1e-9:
+            return None
+        if straightness(coords.geodesic(piece.start, piece.end, t), FAMILY_BEND_WIDTH) < FAMILY_MIN_BEND:
+            return None
+        return piece
+
+    pieces: dict[int, SceneLine | None] = {}
+
+    def line_of(item: tuple[int, Any]) -> SceneLine | None:
+        index, what = item
+        if index < 0:  # a line kept already
+            return what
+        pieces[index] = piece_of(what)
+        return pieces[index]
+
+    order = [(-1, line) for line in kept] + [(int(i), cuts[i]) for i in rng.permutation(len(cuts))]
+    picked = _pick_lines(order, count + len(kept), 8.0, accept, t, line_of)
+    return [(pieces[i], cut[0]) for i, cut in picked if i >= 0]  # the kept lines were kept clear of each other before
+
+
+def _min_distance(a: FloatArray, b: FloatArray) -> float:
+    """Smallest angular distance (degrees) between two sets of unit vectors, (n, 3) and (m, 3)."""
+    if len(a) == 0 or len(b) == 0:
+        return math.inf
+    return float(np.degrees(np.arccos(np.clip(np.max(a @ b.T), -1.0, 1.0))))
+
+
+def _edge_samples(vertices: FloatArray, step: float = 0.5) -> FloatArray:
+    """Unit vectors every ``step`` degrees or closer along a closed polygon's great-circle edges, (m, 3)."""
+    out = []
+    for a, b in zip(vertices, np.roll(vertices, -1, axis=0), strict=True):
+        n = max(2, math.ceil(float(coords.angular_distance(a, b)) / step) + 1)
+        out.append(coords.lonlat_to_xyz(coords.geodesic(a, b, np.linspace(0.0, 1.0, n))[:-1]))
+    return np.concatenate(out)
+
+
+@dataclass(frozen=True)
+class _Cage:
+    """A generated cage: vertices and targets ``[lon, lat]``, its rigid motion and its shape."""
+
+    vertices: tuple[LonLat, ...]
+    targets: tuple[LonLat, ...] | None
+    rotation: FloatArray
+    convex: bool
+    across: float
+
+    def clear_of(self, distance: float, within: float | None = None) -> Callable[[FloatArray], bool]:
+        """A test of ``[lon, lat]`` points: outside the cage before and after its move, ``distance`` or more from its edges.
+
+        With ``within``, also no farther than that from them.
+        """
+        from .quality import inside_polygon
+
+        polygons = [np.array(self.vertices)] + ([np.array(self.targets)] if self.targets is not None else [])
+        edges = np.concatenate([_edge_samples(p) for p in polygons])
+
+        def test(lonlat: FloatArray) -> bool:
+            gap = _min_distance(coords.lonlat_to_xyz(lonlat), edges)
+            if gap < distance or (within is not None and gap > within):
+                return False
+            return not any(inside_polygon(lonlat, p).any() for p in polygons)
+
+        return test
+
+
+def _outline(rng: np.random.Generator, convex: bool) -> FloatArray:
+    """A planar polygon, vertices counter-clockwise, centred, 1 across: a quadrilateral or pentagon, or an L or an arrow."""
+    if convex:
+        n = int(rng.choice([4, 5]))
+        while True:
+            angles = 2 * np.pi * (np.arange(n) + rng.uniform(-0.25, 0.25, n)) / n
+            pts = rng.uniform(0.7, 1.0, n)[:, None] * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+            edges = np.roll(pts, -1, axis=0) - pts
+            turns = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
+            if np.all(turns > 0) and np.min(np.hypot(*edges.T)) > 0.4:
+                break
+    elif rng.integers(0, 2):  # an L: a w x h box without its top right corner
+        w, h = 1.0, rng.uniform(0.6, 1.0)
+        arm_x, arm_y = rng.uniform(0.3, 0.55) * w, rng.uniform(0.3, 0.55) * h
+        pts = np.array([[0, 0], [w, 0], [w, arm_y], [arm_x, arm_y], [arm_x, h], [0, h]])
+    else:  # an arrow along +x
+        shaft, half_shaft, half_head = rng.uniform(0.45, 0.7), rng.uniform(0.1, 0.2), rng.uniform(0.3, 0.45)
+        pts = np.array(
+            [[0, -half_shaft], [shaft, -half_shaft], [shaft, -half_head], [1, 0], [shaft, half_head], [shaft, half_shaft], [0, half_shaft]]
+        )
+    turn = rng.uniform(0.0, 2 * np.pi)
+    c, s = math.cos(turn), math.sin(turn)
+    pts = (pts - pts.mean(axis=0)) @ np.array([[c, s], [-s, c]])
+    return pts / np.max(np.hypot(*(pts[:, None] - pts[None]).transpose(2, 0, 1)))
+
+
+def _rotation_matrix(axis: FloatArray, angle: float) -> FloatArray:
+    """Rotation by ``angle`` degrees about the unit vector ``axis`` (Rodrigues), acting on column vectors."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    theta = math.radians(angle)
+    return np.eye(3) + math.sin(theta) * k + (1 - math.cos(theta)) * (k @ k)
+
+
+def _random_cage(rng: np.random.Generator, across: float, *, convex: bool, moved: bool) -> _Cage:
+    """A cage ``across`` degrees across (gnomonic about a random centre: its planar outline's edges are its great circles)."""
+    outline = _outline(rng, convex)
+    centre = np.array([rng.uniform(-180.0, 180.0), rng.uniform(-1.0, 1.0) * max(5.0, 60.0 - across / 2)])
+    c = coords.lonlat_to_xyz(centre)
+    east, north = coords.local_frame(centre)
+    scale = 2 * math.tan(math.radians(across) / 2)
+    for _ in range(30):  # the gnomonic projection stretches away from the centre: scale until the size is right
+        xyz = c + scale * (outline[:, :1] * east + outline[:, 1:] * north)
+        xyz /= np.linalg.norm(xyz, axis=1, keepdims=True)
+        size = float(np.degrees(np.arccos(np.clip(np.min(xyz @ xyz.T), -1.0, 1.0))))
+        if abs(size - across) < 1e-6:
+            break
+        scale *= across / size
+    vertices = coords.xyz_to_lonlat(xyz)
+    if moved:
+        axis = rng.normal(size=3)
+        rotation = _rotation_matrix(axis / np.linalg.norm(axis), float(rng.uniform(2.0, 8.0) * rng.choice([-1.0, 1.0])))
+        targets = tuple((float(lon), float(lat)) for lon, lat in coords.xyz_to_lonlat(xyz @ rotation.T))
+    else:
+        rotation, targets = np.eye(3), None
+    return _Cage(tuple((float(lon), float(lat)) for lon, lat in vertices), targets, rotation, convex, size)
+
+
+def _clear_of_points(points: Sequence[PointHandle], distance: float) -> Callable[[FloatArray], bool]:
+    """A test of ``[lon, lat]`` points: ``distance`` degrees or more from every point handle's position and target."""
+    where = coords.lonlat_to_xyz(np.array([p for h in points for p in (h.position, h.final)]).reshape(-1, 2))
+    return lambda lonlat: _min_distance(coords.lonlat_to_xyz(lonlat), where) >= distance
+
+
+def _random_points(
+    rng: np.random.Generator, count: int, *, accept: Callable[[FloatArray], bool] | None = None, apart: float = 25.0
+) -> list[PointHandle]:
+    """Up to ``count`` point handles, ``apart`` degrees from each other, whose position and target ``accept`` takes."""
+    from .handles import PointHandle
+
+    out: list[PointHandle] = []
+    for _ in range(200 * count):
+        if len(out) == count:
+            break
+        position = np.array([rng.uniform(-180.0, 180.0), math.degrees(math.asin(rng.uniform(-1.0, 1.0) * math.sin(math.radians(60.0))))])
+        distance, bearing = math.radians(rng.uniform(0.0, 5.0)), rng.uniform(0.0, 2 * np.pi)
+        east, north = coords.local_frame(position)
+        heading = math.cos(bearing) * east + math.sin(bearing) * north
+        target = coords.xyz_to_lonlat(math.cos(distance) * coords.lonlat_to_xyz(position) + math.sin(distance) * heading)
+        scale = math.exp(rng.uniform(math.log(0.6), math.log(2.5)))
+        rotation = rng.uniform(-30.0, 30.0)
+        pair = np.array([position, target])
+        if abs(target[1]) > 60.0 or (accept is not None and not accept(pair)) or not _clear_of_points(out, apart)(pair):
+            continue
+        out.append(
+            PointHandle((float(position[0]), float(position[1])), (float(target[0]), float(target[1])), float(rotation), float(scale))
+        )
+    return out
 
 
 def synthetic_room(

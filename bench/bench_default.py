@@ -1,0 +1,218 @@
+#!/usr/bin/env python
+"""The default mode against the paper's on generated scene families: a markdown table per family.
+
+Usage::
+
+    python bench/bench_default.py [--half report|choose] [--seeds 40] [--width 2048]
+                                  [--families short,long,...] [--json PATH]
+
+For each family of :data:`omniwidget.core.scenes.FAMILIES` and each seed of one half
+(``--half choose``: the even seeds of ``0 .. --seeds - 1``, for choosing settings;
+``--half report``, the default: the odd ones, held out for reporting), the scene's room is
+rendered at ``--width`` (:func:`~omniwidget.core.scenes.family_scene`) and warped twice:
+by the default mode (``Options()``: rectify "all", the still background) and by the paper's
+(``Options(rectify="all", anchor=None)``). Every figure is measured on the output, at its
+width; per family and mode the table aggregates over the half's scenes:
+
+- lines: each line piece's largest distance from its best straight fit in the output
+  (``result.quality.lines``), worst and median over all pieces, px; beside it the same
+  under the piece's own single map (``straightness(result.controls[c].moebius(samples), W,
+  fit="best")``: what the blend would give if it were that map alone);
+- fold-over: the largest share of the sphere turned over, %;
+- distortion: the largest mean and the largest 99th percentile (``Result.quality``);
+- displacement: the largest mean motion of the sphere, degrees;
+- kink: the largest turn of an edge's continuation past its marked piece, degrees of turn
+  per degree of arc (:func:`~omniwidget.core.quality.kink`, over every marked line whose
+  scene line goes on beyond it), with the input's own figure for the same edges beside it;
+- points: the largest centre error (px), zoom error (%) and rotation error (degrees) of
+  the point handles (:func:`~omniwidget.core.quality.point_fidelity`);
+- cages: the largest error of a cage's rigid motion inside it, px
+  (:func:`~omniwidget.core.quality.cage_fidelity`, against the rotation that made its targets);
+- warp: the median seconds of ``warp`` (wall clock, after one warm-up warp; the machine's
+  other load counts too).
+
+``--json PATH`` writes every per-scene figure. Run on demand, not a test; the smoke run is
+``python bench/bench_default.py --seeds 4 --width 1024``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import sys
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+
+from omniwidget.core.handles import Handles, Options  # noqa: E402
+from omniwidget.core.pipeline import warp  # noqa: E402
+from omniwidget.core.quality import cage_fidelity, kink, point_fidelity, straightness  # noqa: E402
+from omniwidget.core.scenes import FAMILIES, family_scene  # noqa: E402
+
+MODES = {"default": Options(), "paper": Options(rectify="all", anchor=None)}
+#: A marked line continues when its scene line is longer by at least this (degrees).
+CONTINUES = 0.5
+
+
+def measure(image: np.ndarray, doc: Handles, truth: dict[str, Any]) -> dict[str, Any]:
+    """Warp one document and measure every figure of the table, per line, point and cage."""
+    start = time.perf_counter()
+    result = warp(image, doc)
+    seconds = time.perf_counter() - start
+    q = result.quality
+    width = result.image.shape[1]
+    single = [straightness(result.controls[c].moebius(samples), width, fit="best") for c, samples in result.constraints.lines]
+    m = result.inverse_map(np.float64)
+    kinks = []
+    for index, line, parent in zip(truth["line_handles"], truth["lines"], truth["parents"], strict=True):
+        if parent.length - line.length >= CONTINUES:
+            edge = [parent.start, parent.end]
+            kinks.append({"handle": index, "output": kink(m, edge, line.start, line.end), "input": kink(None, edge, line.start, line.end)})
+    points = []
+    for index in truth["point_handles"]:
+        f = point_fidelity(result, index)
+        points.append({"handle": index, "centre_px": f.centre_px, "zoom_error": f.zoom_error, "rotation_error": f.rotation_error})
+    cages = [
+        {"handle": index, "error_px": cage_fidelity(result, index, rotation)}
+        for index, rotation in zip(truth["cage_handles"], truth["rotations"], strict=True)
+    ]
+    return {
+        "lines": list(q.lines),
+        "lines_single": single,
+        "fold_over": q.fold_over,
+        "distortion_mean": q.distortion_mean,
+        "distortion_p99": q.distortion_p99,
+        "displacement": q.displacement,
+        "kinks": kinks,
+        "points": points,
+        "cages": cages,
+        "seconds": seconds,
+        "warnings": list(result.warnings),
+    }
+
+
+def _max(values: list[float]) -> float:
+    """The largest value; inf if any is NaN (a line the output does not show), NaN if none."""
+    if not values:
+        return math.nan
+    return math.inf if any(math.isnan(v) for v in values) else max(values)
+
+
+def _median(values: list[float]) -> float:
+    finite = [v for v in values if not math.isnan(v)]
+    return statistics.median(finite) if finite else math.nan
+
+
+def _fmt(value: float, digits: int = 2) -> str:
+    if math.isnan(value):
+        return "–"
+    if math.isinf(value):
+        return "inf"
+    return f"{value:.{digits}f}"
+
+
+def table(family: str, rows: dict[str, list[dict[str, Any]]], width: int) -> str:
+    """The markdown table of one family: one row per mode."""
+    head = [
+        "mode",
+        "lines worst / median px",
+        "single map worst / median px",
+        "fold-over max %",
+        "distortion mean max",
+        "distortion p99 max",
+        "displacement max °",
+        "kink max (input) °/°",
+        "point centre max px",
+        "point zoom max %",
+        "point rotation max °",
+        "cage max px",
+        "warp median s",
+    ]
+    out = [f"### {family} ({len(next(iter(rows.values())))} scenes, {width} px)", "", "| " + " | ".join(head) + " |"]
+    out.append("| " + " | ".join("---" for _ in head) + " |")
+    for mode, scenes in rows.items():
+        lines = [v for s in scenes for v in s["lines"]]
+        single = [v for s in scenes for v in s["lines_single"]]
+        kinks = [k for s in scenes for k in s["kinks"]]
+        points = [p for s in scenes for p in s["points"]]
+        cages = [c["error_px"] for s in scenes for c in s["cages"]]
+        cells = [
+            mode,
+            f"{_fmt(_max(lines))} / {_fmt(_median(lines))}" if lines else "–",
+            f"{_fmt(_max(single), 3)} / {_fmt(_median(single), 3)}" if single else "–",
+            _fmt(100 * _max([s["fold_over"] for s in scenes]), 3),
+            _fmt(_max([s["distortion_mean"] for s in scenes]), 3),
+            _fmt(_max([s["distortion_p99"] for s in scenes])),
+            _fmt(_max([s["displacement"] for s in scenes]), 3),
+            f"{_fmt(_max([k['output'] for k in kinks]))} ({_fmt(_max([k['input'] for k in kinks]))})" if kinks else "–",
+            _fmt(_max([p["centre_px"] for p in points])),
+            _fmt(100 * _max([p["zoom_error"] for p in points])),
+            _fmt(_max([p["rotation_error"] for p in points])),
+            _fmt(_max(cages)),
+            _fmt(statistics.median(s["seconds"] for s in scenes)),
+        ]
+        out.append("| " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready: NaN and infinities become None."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--half", choices=("choose", "report"), default="report", help="even seeds (choose) or odd seeds (report)")
+    parser.add_argument("--seeds", type=int, default=40, help="seeds 0 .. N-1, of which the half's (default 40: 20 per half)")
+    parser.add_argument("--width", type=int, default=2048)
+    parser.add_argument("--families", default=",".join(FAMILIES), help="comma list, of: " + ", ".join(FAMILIES))
+    parser.add_argument("--json", type=Path, help="write every per-scene figure here")
+    args = parser.parse_args(argv)
+    families = [f.strip() for f in args.families.split(",") if f.strip()]
+    unknown = [f for f in families if f not in FAMILIES]
+    if unknown or not families:
+        parser.error(f"unknown families {unknown}; choose among {', '.join(FAMILIES)}")
+    if args.seeds < 1:
+        parser.error("--seeds must be at least 1")
+    seeds = list(range(0 if args.half == "choose" else 1, args.seeds, 2))
+    if not seeds:
+        parser.error(f"the {args.half} half of {args.seeds} seeds is empty")
+    warnings.simplefilter("ignore")
+
+    # one warm-up warp, so that compiling the kernels is not timed
+    scene, doc, _ = family_scene(families[0], seeds[0], args.width)
+    warp(scene.image, doc)
+
+    print(f"bench_default: {args.half} half, seeds {seeds[0]}..{seeds[-1]} ({len(seeds)} per family), width {args.width}\n")
+    records = []
+    for family in families:
+        rows: dict[str, list[dict[str, Any]]] = {mode: [] for mode in MODES}
+        for seed in seeds:
+            scene, doc, truth = family_scene(family, seed, args.width)
+            for mode, options in MODES.items():
+                figures = measure(scene.image, Handles(doc.handles, options), truth)
+                rows[mode].append(figures)
+                records.append({"family": family, "seed": seed, "mode": mode, "handles": doc.to_dict()["handles"], **figures})
+            print(f"  {family} seed {seed} done", file=sys.stderr, flush=True)
+        print(table(family, rows, args.width) + "\n", flush=True)
+    if args.json is not None:
+        args.json.write_text(json.dumps(_plain(records), indent=1) + "\n")
+        print(f"per-scene figures written to {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
