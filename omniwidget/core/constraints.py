@@ -262,16 +262,17 @@ def split_line(
     """
     start, end = np.asarray(start, np.float64), np.asarray(end, np.float64)
     t = np.linspace(0.0, 1.0, 101)
-    ends = moebius(np.stack([start, end]))
-    a = ends[0]
-    b = np.array([coords.unwrap_lon(ends[1, 0], a[0]), ends[1, 1]])
+    whole = moebius(coords.geodesic(start, end, t))
+    whole[:, 0] = np.unwrap(whole[:, 0], period=360.0)  # along the line's image, which may span more than 180°
+    a, b = whole[0], whole[-1]
 
     def image(m: Moebius, lonlat: NDArray) -> NDArray:
         out = m(lonlat)
-        out[:, 0] = coords.unwrap_lon(out[:, 0], a[0])
+        out[:, 0] = np.unwrap(out[:, 0], period=360.0)
+        out[:, 0] += 360.0 * np.round((whole[np.argmin(coords.angular_distance(whole, out[0]))][0] - out[0, 0]) / 360.0)
         return out
 
-    if _off_chord(image(moebius, coords.geodesic(start, end, t)), a, b) <= tolerance:
+    if _off_chord(whole, a, b) <= tolerance:
         return [(start, end, moebius)]
     chord = b - a
     pieces: list[tuple[NDArray[np.float64], NDArray[np.float64], Moebius]] = []

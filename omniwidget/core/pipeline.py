@@ -394,19 +394,22 @@ def _inside_fixed_cages(handles: Handles) -> list[str]:
     return found
 
 
-def _pole_lines(constraints: Constraints, background: bool) -> list[str]:
+def _pole_lines(handles: Handles, constraints: Constraints) -> list[str]:
     """One warning per rectified line that passes over or close to a pole (:data:`~omniwidget.core.constraints.POLE_LATITUDE`)."""
+    background = handles.options.anchor is not None
     found = []
     for i, top in constraints.near_pole:
+        line = handles.handles[i]
+        moved = float(coords.angular_distance(coords.geodesic_midpoint(line.start, line.end), line.target_points()[1]))
         where = f"handles[{i}] (line) passes {90 - abs(top):.1f}° from the {'north' if top > 0 else 'south'} pole"
         if background:
             found.append(
-                f"{where}: it is kept as it is, already as straight as the panorama can show it (along the meridians "
-                "through its ends); eq. (4) would swing its middle round the pole and twist the panorama"
+                f"{where}: it is kept as it is (eq. 4 would move its middle {moved:.0f}° and twist the panorama); "
+                "an arc over a pole cannot be straight in the panorama, mark pieces of it that stay lower to straighten them"
             )
         else:
             found.append(
-                f"{where}: eq. (4) swings its middle round the pole and twists the panorama (the paper's method, "
+                f"{where}: eq. (4) moves its middle {moved:.0f}° and twists the panorama (the paper's method, "
                 '"anchor": null); give it "rectify": false, or use the still background, which keeps it as it is'
             )
     return found
@@ -556,7 +559,7 @@ def warp(
 
     constraints = build_constraints(handles, samples=samples)
     lap("constraints")
-    problems_before = _pole_lines(constraints, handles.options.anchor is not None)
+    problems_before = _pole_lines(handles, constraints)
     maps = [c.moebius for c in constraints.controls]
     single = maps[0] if maps else Moebius.identity()
     # one map for everything; with a still background only if that map is the identity
