@@ -31,8 +31,13 @@ width; per family and mode the table aggregates over the half's scenes:
 - warp: the median seconds of ``warp`` (wall clock, after one warm-up warp; the machine's
   other load counts too).
 
-``--json PATH`` writes every per-scene figure. Run on demand, not a test; the smoke run is
-``python bench/bench_default.py --seeds 4 --width 1024``.
+At the end, one table of issue 17's figures per family and mode: medians, the worst
+scene, and how many scenes meet every figure the issue asks of the default mode (no
+fold-over; distortion mean and p99 and the mean displacement at most 0.05, 0.5 and 0.5°, or
+0.1, 1.0 and 1° for the long lines; lines within 0.5 px; points within 0.25 px, 1% and
+0.1°; cages within 0.5 px). ``--json PATH`` writes every per-scene figure, and ``--load
+PATH`` prints that last table again from such a file. Run on demand, not a test; the smoke
+run is ``python bench/bench_default.py --seeds 4 --width 1024``.
 """
 
 from __future__ import annotations
@@ -162,6 +167,75 @@ def table(family: str, rows: dict[str, list[dict[str, Any]]], width: int) -> str
     return "\n".join(out)
 
 
+#: Issue 17's figures for the default mode: (fold-over, distortion mean, distortion p99, displacement °) at most.
+TARGETS = {"long": (0.0, 0.1, 1.0, 1.0)}
+TARGETS_SHORT = (0.0, 0.05, 0.5, 0.5)  # every other family: short lines, cages and points
+
+
+def targets(records: list[dict[str, Any]]) -> str:
+    """One row per family and mode: medians, the worst scene, and how many scenes meet issue 17's figures."""
+    head = [
+        "family",
+        "mode",
+        "lines worst px",
+        "scenes folding",
+        "distortion mean: median / worst",
+        "p99: median / worst",
+        "moved °: median / worst",
+        "kink °/°: median / worst (input's median)",
+        "points: centre px / zoom % / turn ° worst",
+        "cages worst px",
+        "scenes meeting every figure",
+    ]
+    out = ["| " + " | ".join(head) + " |", "| " + " | ".join("---" for _ in head) + " |"]
+    families = list(dict.fromkeys(r["family"] for r in records))
+    for family in families:
+        fold_max, mean_max, p99_max, moved_max = TARGETS.get(family, TARGETS_SHORT)
+        for mode in MODES:
+            scenes = [r for r in records if r["family"] == family and r["mode"] == mode]
+            if not scenes:
+                continue
+
+            def values(key: str, scenes: list[dict[str, Any]] = scenes) -> list[float]:
+                return [math.nan if s[key] is None else s[key] for s in scenes]
+
+            lines = [math.nan if v is None else v for s in scenes for v in s["lines"]]
+            kinks = [k for s in scenes for k in s["kinks"]]
+            points = [p for s in scenes for p in s["points"]]
+            cages = [c["error_px"] for s in scenes for c in s["cages"]]
+            meeting = sum(
+                (s["fold_over"] or 0) <= fold_max
+                and s["distortion_mean"] <= mean_max
+                and s["distortion_p99"] <= p99_max
+                and s["displacement"] <= moved_max
+                and all(v is not None and v <= 0.5 for v in s["lines"])
+                and all(p["centre_px"] <= 0.25 and p["zoom_error"] <= 0.01 and p["rotation_error"] <= 0.1 for p in s["points"])
+                and all(c["error_px"] <= 0.5 for c in s["cages"])
+                for s in scenes
+            )
+            cells = [
+                family,
+                mode,
+                _fmt(_max(lines)) if lines else "–",
+                f"{sum((s['fold_over'] or 0) > 0 for s in scenes)} of {len(scenes)}",
+                f"{_fmt(_median(values('distortion_mean')), 3)} / {_fmt(_max(values('distortion_mean')), 3)}",
+                f"{_fmt(_median(values('distortion_p99')))} / {_fmt(_max(values('distortion_p99')))}",
+                f"{_fmt(_median(values('displacement')))} / {_fmt(_max(values('displacement')))}",
+                f"{_fmt(_median([k['output'] for k in kinks]), 1)} / {_fmt(_max([k['output'] for k in kinks]), 1)} "
+                f"({_fmt(_median([k['input'] for k in kinks]), 1)})"
+                if kinks
+                else "–",
+                f"{_fmt(_max([p['centre_px'] for p in points]))} / {_fmt(100 * _max([p['zoom_error'] for p in points]), 1)} / "
+                f"{_fmt(_max([p['rotation_error'] for p in points]))}"
+                if points
+                else "–",
+                _fmt(_max(cages)) if cages else "–",
+                f"{meeting} of {len(scenes)}" if mode == "default" else "",
+            ]
+            out.append("| " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
 def _plain(value: Any) -> Any:
     """JSON-ready: NaN and infinities become None."""
     if isinstance(value, dict):
@@ -180,7 +254,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--width", type=int, default=2048)
     parser.add_argument("--families", default=",".join(FAMILIES), help="comma list, of: " + ", ".join(FAMILIES))
     parser.add_argument("--json", type=Path, help="write every per-scene figure here")
+    parser.add_argument("--load", type=Path, help="print the summary of issue 17's figures from a --json file, without warping")
     args = parser.parse_args(argv)
+    if args.load is not None:
+        print(targets(json.loads(args.load.read_text())))
+        return 0
     families = [f.strip() for f in args.families.split(",") if f.strip()]
     unknown = [f for f in families if f not in FAMILIES]
     if unknown or not families:
@@ -208,6 +286,7 @@ def main(argv: list[str] | None = None) -> int:
                 records.append({"family": family, "seed": seed, "mode": mode, "handles": doc.to_dict()["handles"], **figures})
             print(f"  {family} seed {seed} done", file=sys.stderr, flush=True)
         print(table(family, rows, args.width) + "\n", flush=True)
+    print(targets(_plain(records)) + "\n")
     if args.json is not None:
         args.json.write_text(json.dumps(_plain(records), indent=1) + "\n")
         print(f"per-scene figures written to {args.json}")
