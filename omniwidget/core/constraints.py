@@ -11,6 +11,12 @@ blend of eq. (2) is an inverse map:
 - a cage: weight 1 at each vertex for that vertex's control; along each edge, sampled
   ``samples`` times, the two end vertices' weights vary linearly;
 - every other control: weight 0 at all of these points.
+
+With the still background (``options.anchor``, the default; issue 17) a point also holds
+its map on a small disk (:data:`POINT_HOLD`), a cage's vertex maps share the cage's best
+rotation (``CageHandle.vertex_maps(carry=True)``), a rectified line too long for one map is
+cut into pieces on one straight segment (:func:`split_line`), and a line over a pole is
+kept as it is (:data:`POLE_LATITUDE`). ``"anchor": null`` is the paper's method exactly.
 """
 
 from __future__ import annotations
@@ -51,9 +57,9 @@ LINE_TOLERANCE = 0.02
 MAX_PIECES = 16
 #: A rectified line that climbs to this latitude (degrees, north or south) passes over or
 #: close to a pole, where eq. (4) would send its middle far round the pole (a ceiling edge
-#: right above the camera): with the still background it is kept as it is, already as
-#: straight as the equirectangular image can show it. Chosen where eq. (4) stops helping
-#: (``bench/bench_pole_lines.py``).
+#: right above the camera): with the still background it is kept as it is (no arc over a
+#: pole can be straight in the panorama). Chosen where eq. (4) stops helping: the median
+#: latitude where it starts to fold and its distortion jumps (``bench/bench_pole_lines.py``).
 POLE_LATITUDE = 75.0
 
 
@@ -254,7 +260,7 @@ def split_line(
     -----
     A Möbius map sends the line's great circle to a circle of the sphere, and a circle
     through three points of a straight segment of the image stays near it only over a short
-    arc. With ``n`` pieces, the piece ends and middles (the line cut evenly) go to where
+    arc. With ``n`` pieces, the piece ends and middles (the line cut into equal arcs) go to where
     ``moebius`` puts them, moved across onto the segment (projected in the lon/lat plane):
     each piece's map is then a small correction of the line's own, the pieces meet at their
     ends, and together they run along one segment. The smallest ``n`` that leaves every
@@ -276,8 +282,12 @@ def split_line(
         return [(start, end, moebius)]
     chord = b - a
     pieces: list[tuple[NDArray[np.float64], NDArray[np.float64], Moebius]] = []
+    p, q = coords.lonlat_to_xyz(start), coords.lonlat_to_xyz(end)
+    angle = math.acos(min(max(float(p @ q), -1.0), 1.0))
+    across = (q - math.cos(angle) * p) / math.sin(angle)
     for n in range(2, max_pieces + 1):
-        knots = coords.geodesic(start, end, np.linspace(0.0, 1.0, 2 * n + 1))
+        turn = np.linspace(0.0, angle, 2 * n + 1)[:, None]  # equal steps of arc
+        knots = coords.xyz_to_lonlat(np.cos(turn) * p + np.sin(turn) * across)
         knots[0], knots[-1] = start, end
         onto = image(moebius, knots)
         onto = a + np.outer((onto - a) @ chord / (chord @ chord), chord)  # across onto the segment
