@@ -73,13 +73,6 @@ RELATIVE_WEIGHT = 1.0 / 20.0
 #: With ``keep="sphere"``: the sphere within this many degrees of a line is what its map
 #: should move least (the choice measured best, ``bench/bench_line_maps.py``).
 NEAR_LINE = 4.0
-#: With ``keep="sphere"``: and along the line's great circle this many degrees past each end,
-#: where the edge a person marked usually goes on and stays still. 0 by default: on the
-#: generated scene families (``bench/bench_default.py --half choose``) 10° halves the edges'
-#: sharpest turn past a line's end (31-39 to 10-25 degrees per degree) but moves the lines
-#: more and raises the short lines' distortion (room 3 of ``scenes.LINED_ROOMS``: mean 0.031 to
-#: 0.053), past what the still background promises.
-NEAR_BEYOND = 0.0
 #: With ``keep="sphere"``: the weight of that motion (mean squared, degrees), 10 times an
 #: endpoint's :data:`KEEP_WEIGHT`. More outweighs eq. (8) where lines meet, as in Fig. 6:
 #: at 30 times the sides' tops come within 0.4° of the top edge, at 100 times they fold.
@@ -218,7 +211,7 @@ def _along(points: NDArray[np.float64]) -> float:
 
 
 def line_neighbourhood(
-    start: ArrayLike, end: ArrayLike, radius: float, step: float = 0.5, beyond: float = 0.0
+    start: ArrayLike, end: ArrayLike, radius: float, step: float = 0.5
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Points of the sphere within ``radius`` degrees of the geodesic from ``start`` to ``end``, with their areas.
 
@@ -230,8 +223,6 @@ def line_neighbourhood(
         Degrees, more than 0.
     step : float
         Grid spacing in degrees, along the line and across it.
-    beyond : float
-        Degrees: the line taken as going on this far along its great circle past each end.
 
     Returns
     -------
@@ -249,18 +240,17 @@ def line_neighbourhood(
     normal /= np.linalg.norm(normal)
     across = np.cross(normal, a)
     length = math.atan2(float(b @ across), float(b @ a))
-    past = math.radians(beyond)
     along, off = np.meshgrid(
-        np.radians(np.arange(-radius - beyond, math.degrees(length) + radius + beyond + step / 2, step)),
+        np.radians(np.arange(-radius, math.degrees(length) + radius + step / 2, step)),
         np.radians(np.arange(-radius, radius + step / 2, step)),
     )
-    near = np.cos(off) * np.cos(along - np.clip(along, -past, length + past)) >= math.cos(math.radians(radius))
+    near = np.cos(off) * np.cos(along - np.clip(along, 0.0, length)) >= math.cos(math.radians(radius))
     along, off = along[near], off[near]
     xyz = np.cos(off)[:, None] * (np.cos(along)[:, None] * a + np.sin(along)[:, None] * across) + np.sin(off)[:, None] * normal
     return xyz, np.cos(off) / np.cos(off).sum()
 
 
-def motion_metric(points: ArrayLike, radius: float = NEAR_LINE, step: float = 0.5, beyond: float = 0.0) -> NDArray[np.float64]:
+def motion_metric(points: ArrayLike, radius: float = NEAR_LINE, step: float = 0.5) -> NDArray[np.float64]:
     """How much a line's map moves the sphere near the line, to second order in its control points' motion.
 
     Parameters
@@ -272,9 +262,6 @@ def motion_metric(points: ArrayLike, radius: float = NEAR_LINE, step: float = 0.
         start to end) is measured.
     step : float
         Spacing of the measuring grid, degrees.
-    beyond : float
-        Degrees: the part of the sphere measured goes on this far past each end of the line
-        (:func:`line_neighbourhood`).
 
     Returns
     -------
@@ -295,7 +282,7 @@ def motion_metric(points: ArrayLike, radius: float = NEAR_LINE, step: float = 0.
     points = np.asarray(points, dtype=np.float64)
     if points.shape != (3, 2) or not np.all(np.isfinite(points)):
         raise ValueError(f"points must be three finite [lon, lat] rows, got shape {points.shape}")
-    grid, area = line_neighbourhood(points[0], points[2], radius, step, beyond)
+    grid, area = line_neighbourhood(points[0], points[2], radius, step)
     h = 1e-4  # degrees: one-sided differences of the motion in each of the six coordinates
     jacobian = np.empty((grid.size, 6))
     for j in range(6):
@@ -335,8 +322,7 @@ def solve_bones(
           is shared;
         - ``"sphere"`` (the still background's): as ``"points"``, and the control points
           also move so that the line's map moves the sphere within :data:`NEAR_LINE`
-          degrees of the line (and of its great circle :data:`NEAR_BEYOND` degrees past
-          its ends) least (:func:`motion_metric`, weight :data:`MOTION_WEIGHT`).
+          degrees of the line least (:func:`motion_metric`, weight :data:`MOTION_WEIGHT`).
           That is where the background's weight changes, and there the blend's distortion
           is about the map's motion times the weight's gradient.
 
@@ -425,7 +411,7 @@ def solve_bones(
             np.full(1, RECTIFY_WEIGHT * (1.0 if keep == "endpoints" else LEAST_MOTION_STIFFNESS)),
         )
         if keep == "sphere":
-            metrics.append((k, motion_metric(_inputs(b), NEAR_LINE, beyond=NEAR_BEYOND)))
+            metrics.append((k, motion_metric(_inputs(b), NEAR_LINE)))
         for s in (0, 2) if keep == "endpoints" else (0, 1, 2):  # eq. (10): the endpoints stay (and the middle)
             rows.add([(v[s : s + 1], np.ones(1))], np.zeros((1, 2)), np.full(1, KEEP_WEIGHT))
     a = sp.csr_matrix((np.concatenate(rows.val), (np.concatenate(rows.row), np.concatenate(rows.col))), shape=(rows.count, n))
