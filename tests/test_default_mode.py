@@ -146,3 +146,17 @@ def test_the_papers_mode_is_the_paper():
     # one point handle alone is its own map, exactly
     point = Handles((PointHandle((30.0, -10.0), target=(33.0, -8.0), scale=2.0),), Options(anchor=None))
     assert _warp(scene.image, point).weights is None
+
+
+@pytest.mark.parametrize("seed", [1, 3, 5])
+def test_rooms_of_long_lines_are_far_calmer_than_the_papers(seed):
+    """Part 4 on rooms of long lines, as far as it is met (``bench/bench_default.py``: the issue's figures are not
+    reached on every scene). Seeds 1, 3 and 5 of the report half: the default folds at most as much as the paper,
+    distorts a third as much and moves the sphere a tenth as far. Seed 7 is the known exception: two long lines'
+    ends meet at a corner and the default folds 0.5% with distortion mean 3.5, against the paper's 0% and 1.1."""
+    scene, doc, _ = family_scene("long", seed, 1024)
+    ours, theirs = _warp(scene.image, doc).quality, _warp(scene.image, _paper(doc)).quality
+    print(f"\nlong {seed}: default {ours.line()}\n  paper {theirs.line()}")
+    assert ours.fold_over <= theirs.fold_over
+    assert ours.distortion_mean < theirs.distortion_mean / 3 and ours.distortion_p99 < theirs.distortion_p99 / 2
+    assert ours.displacement < theirs.displacement / 10 and ours.straightness <= 0.5
