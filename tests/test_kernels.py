@@ -130,3 +130,40 @@ def test_painting_and_strongest_weights_match_numpy(room, monkeypatch):
 
     expected = interpolate(result.weights, result.faces, face[rows, cols], at).max(axis=0)
     np.testing.assert_allclose(_kernels.strongest_weights(mask, face, planes, result.faces, result.weights), expected, atol=1e-12)
+
+
+_FRESH_WARP = """
+import json, warnings
+warnings.simplefilter("ignore")
+from omniwidget.core import _numba_kernels as k
+from omniwidget.core.scenes import family_scene
+from omniwidget.core.pipeline import warp
+scene, doc, _ = family_scene("mixed", 1, 2048)
+warp(scene.image, doc)
+kernels = [f for f in vars(k).values() if hasattr(f, "stats")]
+print(json.dumps({"hits": sum(sum(f.stats.cache_hits.values()) for f in kernels),
+                  "misses": sum(sum(f.stats.cache_misses.values()) for f in kernels)}))
+"""
+
+
+@pytest.mark.skipif(not _kernels.available(), reason="the compiled kernels need numba")
+def test_the_kernels_compile_once_per_installation_not_per_process(tmp_path):
+    """Issue 18, part 1: a second fresh process reads every kernel from numba's cache, and the cache does not grow."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+
+    def fresh() -> tuple[dict, dict[str, float]]:
+        run = subprocess.run([sys.executable, "-c", _FRESH_WARP], env=env, capture_output=True, text=True, timeout=600, check=True)
+        files = {str(p.relative_to(tmp_path)): p.stat().st_mtime_ns for p in tmp_path.rglob("*") if p.is_file()}
+        return json.loads(run.stdout.strip().splitlines()[-1]), files
+
+    first, files = fresh()
+    assert first["misses"] > 0 and files  # compiled, and written to the cache
+    for _ in range(2):
+        again, files_again = fresh()
+        assert again["misses"] == 0 and again["hits"] >= first["misses"], again  # nothing compiled
+        assert files_again == files  # the same files, none added or rewritten
