@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import atexit
 import logging
 import threading
+import weakref
 from collections.abc import Callable
 
 _log = logging.getLogger("omniwidget")
+#: Every worker alive, stopped when the interpreter exits (:func:`_stop_all`).
+_workers: weakref.WeakSet[Latest] = weakref.WeakSet()
 
 
 class Latest:
@@ -23,10 +27,14 @@ class Latest:
         self._cond = threading.Condition()
         self._job: Callable[[], None] | None = None
         self._running = False
+        self._stopped = False
         self._thread: threading.Thread | None = None
+        _workers.add(self)
 
     def submit(self, job: Callable[[], None]) -> None:
         with self._cond:
+            if self._stopped:
+                return  # the interpreter is exiting
             self._job = job
             self._cond.notify_all()
             if self._thread is None:
@@ -36,7 +44,9 @@ class Latest:
     def _loop(self) -> None:
         while True:
             with self._cond:
-                self._cond.wait_for(lambda: self._job is not None)
+                self._cond.wait_for(lambda: self._job is not None or self._stopped)
+                if self._stopped:
+                    return
                 job, self._job = self._job, None
                 self._running = True
             try:
@@ -52,3 +62,22 @@ class Latest:
         """Block until no job waits or runs; False on timeout."""
         with self._cond:
             return self._cond.wait_for(lambda: self._job is None and not self._running, timeout)
+
+    def stop(self, timeout: float | None = None) -> bool:
+        """Drop a waiting job, let a running one finish and end the thread; False if it is still running after ``timeout``.
+
+        A daemon thread still inside compiled code when the interpreter finalizes can abort
+        the process (``FATAL: exception not rethrown``), so every worker is stopped this way
+        when the interpreter exits.
+        """
+        with self._cond:
+            self._stopped, self._job = True, None
+            self._cond.notify_all()
+            return self._cond.wait_for(lambda: not self._running, timeout)
+
+
+@atexit.register
+def _stop_all() -> None:
+    """Stop every worker before the interpreter finalizes (atexit runs before daemon threads are cut off)."""
+    for worker in list(_workers):
+        worker.stop()

@@ -668,3 +668,24 @@ def test_the_quality_figures_of_the_result_on_screen_come_in_one_line(editor):
         time.sleep(0.05)
     line = editor.status["quality"]
     assert line == editor.preview_result.quality.line() and line.startswith("lines within ") and "folds 0%" in line, line
+
+
+_EXIT_MID_PREVIEW = """
+import omniwidget as ow
+ed = ow.Editor(ow.sample_image(), autosave=False)
+ed.handles = {"handles": [{"kind": "line", "start": [-4.0, 37.5], "end": [68.0, 36.5]},
+                          {"kind": "line", "start": [100.0, 30.0], "end": [150.0, 32.0]}]}
+ed.rectify_all()
+"""
+
+
+def test_a_process_that_ends_while_a_preview_computes_exits_cleanly():
+    """Issue 18, part 6: the script exits right after asking for a preview; the worker is stopped, never cut off inside
+    compiled code (it aborted with "FATAL: exception not rethrown" in 1 run of 12)."""
+    import subprocess
+    import sys
+
+    codes = [
+        subprocess.run([sys.executable, "-c", _EXIT_MID_PREVIEW], capture_output=True, text=True, timeout=300).returncode for _ in range(20)
+    ]
+    assert codes == [0] * 20, codes
