@@ -15,7 +15,7 @@ warp may).
 
 The kernels themselves are module-level functions of :mod:`omniwidget.core._numba_kernels`,
 so numba's on-disk cache serves every new process (issue 18): the first warp in a fresh
-process reads them instead of compiling them (about 0.7 s instead of 3-4 s at 2048).
+process reads them instead of compiling them.
 
 Without numba (``pip install numba``, or the ``fast`` extra), or with the environment
 variable ``OMNIWIDGET_NUMBA=0``, :func:`available` is False and the numpy path runs; the
