@@ -689,3 +689,114 @@ def test_a_process_that_ends_while_a_preview_computes_exits_cleanly():
         subprocess.run([sys.executable, "-c", _EXIT_MID_PREVIEW], capture_output=True, text=True, timeout=300).returncode for _ in range(20)
     ]
     assert codes == [0] * 20, codes
+
+
+# --- save image (issue 18) ------------------------------------------------------------------------------------------
+
+
+def full_size(ed: Editor) -> np.ndarray:
+    """The full-size result computed the same way as the editor does, from scratch."""
+    return pipeline.warp(ed.image, ed.document, warn=False).image
+
+
+def test_save_image_writes_the_full_size_result_next_to_the_panorama_as_png(tmp_path):
+    room = tmp_path / "room.png"
+    ow.write_image(room, ow.sample_image())
+    ed = Editor(room)
+    ed.handles = doc({**WINDOW_TOP, "rectify": True})
+    ed.wait()
+    path = ed.save_image()
+    assert path == tmp_path / "room-rectified.png" and path != room
+    written = ow.read_image(path)
+    assert written.shape == ed.image.shape and np.array_equal(written, ed.result.image)
+    assert np.array_equal(written, full_size(ed))  # pixel by pixel
+    assert np.array_equal(ow.read_image(room), ow.sample_image())  # the input is untouched
+    assert ed.status["saved"] == str(path) and str(path) in ed.status["message"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["room-rectified.png", "room.png"]  # no temporary file left
+
+
+def test_save_image_keeps_a_jpegs_format_and_its_pixels_are_the_encoders_own(room, tmp_path):
+    ed = Editor(room)
+    ed.handles = doc({**WINDOW_TOP, "rectify": True})
+    path = ed.save_image()
+    assert path == room.with_name("room-rectified.jpg")
+    reference = tmp_path / "reference.jpg"
+    ow.write_image(reference, full_size(ed))
+    assert np.array_equal(ow.read_image(path), ow.read_image(reference))
+    assert path.read_bytes() == reference.read_bytes()
+    assert ow.read_image(room).shape == ed.image.shape and room.read_bytes() == Path(ow.sample_path()).read_bytes()
+
+
+def test_save_image_falls_back_to_png_when_the_inputs_format_cannot_hold_the_result(tmp_path, monkeypatch):
+    from omniwidget.widget.editor import _result_location
+
+    rgba = np.zeros((4, 8, 4), np.uint8)
+    assert _result_location(tmp_path / "room.jpg", rgba) == tmp_path / "room-rectified.png"  # alpha in a JPEG
+    assert _result_location(tmp_path / "room.jpg", rgba[..., :3]) == tmp_path / "room-rectified.jpg"
+    assert _result_location(tmp_path / "room.v2.webp", rgba) == tmp_path / "room.v2-rectified.webp"
+    assert _result_location(tmp_path / "deep.png", rgba.astype(np.float32)) == tmp_path / "deep-rectified.tif"
+    monkeypatch.chdir(tmp_path)
+    assert _result_location(None, rgba) == tmp_path / "panorama-rectified.png"
+    assert _result_location(Path(ow.sample_path()), rgba[..., :3]).parent == tmp_path  # never into the package
+
+
+def test_save_image_never_overwrites_the_input(room):
+    ed = Editor(room)
+    before = room.read_bytes()
+    with pytest.raises(ow.ImageError, match="never overwrites"):
+        ed.save_image(room)
+    with pytest.raises(ow.ImageError, match="never overwrites"):
+        ed.save_image(room.parent / "." / "room.jpg")
+    assert room.read_bytes() == before and "never overwrites" in ed.status["error"]
+    ed.wait()
+
+
+def test_save_image_of_an_array_writes_into_the_working_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    ed = Editor(ow.sample_image())
+    ed.handles = doc({**WINDOW_TOP, "rectify": True})
+    path = ed.save_image()
+    assert path == tmp_path / "panorama-rectified.png"
+    assert np.array_equal(ow.read_image(path), full_size(ed))
+    ed.wait()
+
+
+def test_an_unwritable_folder_is_shown_like_the_editors_errors_and_keeps_the_handles(tmp_path):
+    import shutil
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    room = Path(shutil.copy(ow.sample_path(), folder / "room.jpg"))
+    ed = Editor(room)
+    ed.handles = doc({**WINDOW_TOP, "rectify": True})
+    kept = ed.handles
+    shutil.rmtree(folder)  # the folder went away (an unmounted disk, say)
+    with pytest.raises(ow.ImageError):
+        ed.save_image()
+    assert ed.status["error"].startswith("could not save the image: ") and "the handles are kept" in ed.status["error"]
+    assert str(folder) in ed.status["error"] and ed.handles == kept
+    # the button: in the worker, shown the same way
+    ed._report_error("")
+    ed._on_message(ed, {"op": "save_image"}, [])
+    status = ed.wait()
+    assert status["error"].startswith("could not save the image: ") and ed.handles == kept
+    assert status["state"] == "idle" and status["width"] == ed.image.shape[1]  # the full-size result is shown all the same
+    folder.mkdir()
+    assert ed.save_image() == folder / "room-rectified.jpg"
+
+
+def test_save_image_button_works_in_the_worker_and_sends_the_file_for_download(room, monkeypatch):
+    sent = []
+    ed = Editor(room)
+    monkeypatch.setattr(ed, "send", lambda content, buffers=None: sent.append((content, buffers)))
+    ed.handles = doc({**WINDOW_TOP, "rectify": True})
+    ed._on_message(ed, {"op": "save_image"}, [])
+    assert ({"done": "save_image"}, None) in sent  # the kernel answers at once: the widget never waits
+    status = ed.wait()
+    path = room.with_name("room-rectified.jpg")
+    assert status["saved"] == str(path) and status["width"] == ed.image.shape[1] and status["error"] == ""
+    assert f"saved to {path}" in status["message"]
+    ((content, buffers),) = [(c, b) for c, b in sent if c.get("op") == "image_file"]
+    assert content == {"op": "image_file", "name": "room-rectified.jpg", "mime": "image/jpeg"}
+    assert bytes(buffers[0]) == path.read_bytes()
+    assert np.array_equal(decoded(bytes(buffers[0]))[..., ::-1], ow.read_image(path))

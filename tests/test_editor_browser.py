@@ -608,3 +608,60 @@ def test_a_line_over_the_pole_is_kept_drawn_dashed_and_its_warning_shows_on_hove
             assert (pane.canvas.get_attribute("title") or "") == ""
         nb.screenshot("editor_pole_line")
         assert nb.console_errors() == [], "\n".join(nb.console_errors())
+
+
+# --- save image (issue 18): the button writes the full-size result next to the panorama and offers it for download ---
+
+SAVE_IMAGE_NOTEBOOK = [
+    "import json\nimport omniwidget as ow\n\ned = ow.Editor('save_image/room.png', height=440)\ned",
+]
+
+
+def test_save_image_writes_the_full_size_result_and_downloads_it(jupyter_server, browser):
+    from omniwidget.core import pipeline
+
+    folder = jupyter_server.root / "save_image"
+    folder.mkdir(exist_ok=True)
+    room = folder / "room.png"
+    ow.write_image(room, ow.sample_image())  # a PNG copy of the sample: the result is compared exactly
+    target = folder / "room-rectified.png"
+    target.unlink(missing_ok=True)
+    bh.write_notebook(jupyter_server.root / "save_image.ipynb", SAVE_IMAGE_NOTEBOOK)
+    with bh.NotebookPage(browser, jupyter_server, "save_image.ipynb") as nb:
+        nb.run_all()
+        nb.wait_for_output(".ow-editor")
+        generation = wait_idle(nb, 0, "the first result on screen")
+        client = nb.kernel_client()
+        line = {"kind": "line", "start": list(WINDOW_TOP[0]), "end": list(WINDOW_TOP[1]), "rectify": True}
+        document = {"format": "omniwidget.handles", "version": 1, "handles": [line], "options": {"rectify": "all"}}
+        bh.run_in_kernel(client, f"ed.handles = {json.dumps(document)!r}")
+        generation = wait_idle(nb, generation, "the rectified result")
+
+        with nb.page.expect_download(timeout=90_000) as download_info:
+            nb.output('[data-action="save-image"]').click()
+        download = download_info.value
+        assert download.suggested_filename == "room-rectified.png"
+        assert target.exists(), sorted(p.name for p in folder.iterdir())
+        assert Path(download.path()).read_bytes() == target.read_bytes()  # the download is the file written
+        wait_idle(nb, generation, "the full-size result on screen")
+        def said() -> str | None:
+            text = nb.output(".ow-message").first.inner_text()
+            return text if "saved to" in text else None
+
+        text = bh.wait_until(
+            said,
+            timeout=20,
+            description="the status line saying where the image went",
+        )
+        assert "room-rectified.png" in text and "1024 x 512" in text, text
+
+        handles = ow.Handles.from_dict(kernel_json(client, "ed.handles"))
+        written = ow.read_image(target)
+        expected = pipeline.warp(ow.read_image(room), handles, warn=False).image
+        assert written.shape == expected.shape == (512, 1024, 3)
+        assert np.array_equal(written, expected)  # pixel by pixel
+        same = bh.run_in_kernel(client, "import numpy as np\nprint(np.array_equal(ow.read_image(ed.status['saved']), ed.result.image))")
+        assert same.strip() == "True"
+        assert np.array_equal(ow.read_image(room), ow.sample_image())  # the input is untouched
+        nb.screenshot("editor_save_image")
+        assert nb.console_errors() == [], "\n".join(nb.console_errors())

@@ -36,12 +36,12 @@ from ..core import coords
 from ..core.draw import display_rgb
 from ..core.errors import HandlesError, ImageError
 from ..core.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
-from ..core.io import check_panorama, read_image
+from ..core.io import _check_format, check_panorama, read_image, write_image
 
 if TYPE_CHECKING:
     from ..core.constraints import Constraints
 
-__all__ = ["AUTOSAVE_SUFFIX", "DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "Editor", "saved_handles"]
+__all__ = ["AUTOSAVE_SUFFIX", "DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "RESULT_SUFFIX", "Editor", "saved_handles"]
 
 #: Width of the result computed after every edit (the issue's "about 1024 x 512").
 PREVIEW_WIDTH = 1024
@@ -55,6 +55,11 @@ QUALITY_DELAY = 0.3
 AUTOSAVE_SUFFIX = ".omniwidget-autosave.json"
 #: Set to ``0`` (or ``off``, ``false``, ``no``) to turn autosave off where not asked for explicitly.
 AUTOSAVE_ENV = "OMNIWIDGET_AUTOSAVE"
+#: Save image names the full-size result so: ``room-rectified.jpg`` next to ``room.jpg``.
+RESULT_SUFFIX = "-rectified"
+#: Formats tried, in order, after the input's own when it cannot hold the result.
+_RESULT_FORMATS = (".png", ".tif", ".npy")
+_MIME = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".tif": "image/tiff", ".tiff": "image/tiff", ".webp": "image/webp", ".bmp": "image/bmp"}
 
 _STATIC = Path(__file__).parent / "static"
 _PACKAGE = Path(__file__).resolve().parents[1]  # never written to (the bundled sample lives here)
@@ -211,6 +216,33 @@ def _read_autosave(path: Path) -> tuple[Handles | None, str]:
     except Exception as exc:  # noqa: BLE001 - whatever is wrong with the file, the editor opens
         problem = f"{path}: {type(exc).__name__}: {exc}"
     return None, problem
+
+
+# --- save image --------------------------------------------------------------------------------
+def _result_location(image_path: Path | None, result: NDArray) -> Path:
+    """Where Save image writes ``result``: see :meth:`Editor.save_image`."""
+    if image_path is None:
+        base, suffixes = Path.cwd() / f"panorama{RESULT_SUFFIX}", _RESULT_FORMATS
+    else:
+        folder = image_path.parent
+        if image_path.resolve().parent.is_relative_to(_PACKAGE):  # the bundled sample: never written next to it
+            folder = Path.cwd()
+        base, suffixes = folder / f"{image_path.stem}{RESULT_SUFFIX}", (image_path.suffix, *_RESULT_FORMATS)
+    for suffix in suffixes:
+        candidate = base.with_name(base.name + suffix)
+        try:
+            _check_format(candidate, result)
+        except ImageError:
+            continue  # this format cannot hold the result (alpha in a JPEG, a float image in a PNG, ...)
+        return candidate
+    return base.with_name(base.name + ".npy")  # pragma: no cover - .npy holds any array
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
+    except OSError:
+        return False
 
 
 def _exception_text(exc: BaseException) -> str:
@@ -526,7 +558,8 @@ class Editor(anywidget.AnyWidget):
         # the last preview's weights start the solver: a drag changes them little
         return warp(self._preview_source, doc, width=self._preview_width, warn=False, previous=self._preview_result)
 
-    def _compute(self, doc: Handles, key: str, generation: int, full: bool) -> None:
+    def _compute(self, doc: Handles, key: str, generation: int, full: bool) -> Any:
+        """Compute and show the result of ``doc``; return it (None when it failed, which is shown)."""
         start = time.perf_counter()
         try:
             result = self._warp(doc, key, full)
@@ -543,14 +576,14 @@ class Editor(anywidget.AnyWidget):
                     self.last_error = exc
                     message = f"could not compute the result ({_exception_text(exc)}); the handles are kept and the last good result stays"
                     self.status = {**self.status, "state": "error", "message": message, "error": message}
-            return
+            return None
         seconds = time.perf_counter() - start
         kept = _kept_lines(result)
         pole = tuple(f"handles[{i}] (line) passes " for i in kept)  # their warnings say why; they are no conflict
         conflicts = sorted({int(i) for w in result.warnings if not w.startswith(pole) for i in _HANDLE_NAME.findall(w)})
         with self._lock:
             if generation != self._generation:
-                return  # a newer edit is on its way: this result is stale
+                return result  # a newer edit is on its way: this result is stale
             with self.hold_sync():
                 self.preview = image
                 self.folds = folds
@@ -572,6 +605,7 @@ class Editor(anywidget.AnyWidget):
                 }
         if self._measure and result.weights is not None:
             self._quality.submit(lambda: self._measure_quality(result, generation))
+        return result
 
     def _measure_quality(self, result: Any, generation: int) -> None:
         """The quality figures of a result on screen, in a line of the status (measured after it is shown)."""
@@ -612,6 +646,76 @@ class Editor(anywidget.AnyWidget):
         """Compute the full-resolution result in the background and show it."""
         doc, key = self.document, self._key()
         self._schedule(lambda generation: self._compute(doc, key, generation, full=True))
+
+    # --- save image ---------------------------------------------------------------------------
+    def save_image(self, path: str | os.PathLike[str] | None = None) -> Path:
+        """Write the full-size result of the current handles (whole or not at all); return where.
+
+        Parameters
+        ----------
+        path : path-like, optional
+            Where to write (its suffix picks the format). Default: next to the panorama when
+            the editor was opened from a file, ``room.jpg`` giving ``room-rectified.jpg`` in
+            the input's format, or PNG (then TIFF, then ``.npy``) where that format cannot
+            hold the result (alpha in a JPEG, say); in the working folder as
+            ``panorama-rectified.png`` when it was opened from an array (and as
+            ``<stem>-rectified.<suffix>`` for the bundled sample, never written next to).
+
+        Raises
+        ------
+        ImageError
+            If the file cannot be written (a folder that is not there or not writable) or
+            ``path`` is the input panorama, which is never overwritten. The error is also
+            shown in the widget (:attr:`status` ``error``); the handles are kept.
+
+        The Save image button does the same in the editor's worker (the widget never waits)
+        and also offers the file as a browser download.
+        """
+        try:
+            result = self._full(self.document, self._key(), warn=False)
+            written = self._write_result(result.image, path)
+        except Exception as exc:
+            self._report_error(self._save_image_error(exc))
+            raise
+        self._say_saved(written, result.image)
+        return written
+
+    def _write_result(self, image: NDArray, path: str | os.PathLike[str] | None) -> Path:
+        target = Path(path) if path is not None else _result_location(self._image_path, image)
+        if self._image_path is not None and _same_file(target, self._image_path):
+            raise ImageError(f"{target}: is the input panorama, which the editor never overwrites; name another file")
+        write_image(target, image)
+        return target
+
+    @staticmethod
+    def _save_image_error(exc: BaseException) -> str:
+        text = str(exc) if isinstance(exc, ImageError) else _exception_text(exc)
+        return f"could not save the image: {text}; the handles are kept"
+
+    def _say_saved(self, path: Path, image: NDArray) -> None:
+        with self._lock:
+            message = f"{image.shape[1]} x {image.shape[0]} saved to {path}"
+            self.status = {**self.status, "message": message, "saved": str(path)}
+
+    def _save_image_job(self, doc: Handles, key: str, generation: int) -> None:
+        """In the worker: compute and show the full-size result, write it and send it for download."""
+        result = self._compute(doc, key, generation, full=True)
+        if result is None:
+            return  # the computation's error is shown
+        try:
+            path = self._write_result(result.image, None)
+            data = path.read_bytes()
+        except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
+            self.last_error = exc
+            self._report_error(self._save_image_error(exc))
+            return
+        self._say_saved(path, result.image)
+        mime = _MIME.get(path.suffix.lower(), "application/octet-stream")
+        self.send({"op": "image_file", "name": path.name, "mime": mime}, buffers=[data])
+
+    def _save_image_in_worker(self) -> None:
+        doc, key = self.document, self._key()
+        self._schedule(lambda generation: self._save_image_job(doc, key, generation))
 
     # --- edits -----------------------------------------------------------------------------
     def undo(self) -> bool:
@@ -700,6 +804,8 @@ class Editor(anywidget.AnyWidget):
                 self.move_arrow(content.get("index"), content.get("tip"), content.get("which", "east"))
             elif op == "full":
                 self.compute_full()
+            elif op == "save_image":
+                self._save_image_in_worker()
             elif op == "save":
                 path = self.save()
                 self.status = {**self.status, "message": f"saved {len(self.document)} handles to {path}"}

@@ -242,6 +242,12 @@ function render({ model, el: host }) {
     button("download", "Download", "Download the handles file", () => download()),
     button("load", "Load", "Load a handles file", () => fileInput.click()),
     button("full", "Full size", "Compute the result at the panorama's full size", () => command("full")),
+    button(
+      "save-image",
+      "Save image",
+      "Write the full-size result next to the panorama (room.jpg: room-rectified.jpg) and download it",
+      () => command("save_image"),
+    ),
     button("help", "?", "Keyboard shortcuts (?)", () => toggleHelp()),
     fileInput,
   );
@@ -310,7 +316,11 @@ function render({ model, el: host }) {
     }
     model.send({ op, ...content });
   }
-  function onMessage(content) {
+  function onMessage(content, buffers) {
+    if (content && content.op === "image_file" && buffers && buffers.length) {
+      downloadImage(content, buffers[0]);
+      return;
+    }
     if (content && content.done !== undefined && CHANGES_HANDLES.has(content.done) && pendingCount > 0) {
       setPending(pendingCount - 1);
       if (pendingCount === 0 && localNote.startsWith("one moment")) showLocal("");
@@ -344,6 +354,17 @@ function render({ model, el: host }) {
     const a = el("a", { href: URL.createObjectURL(blob), download: "handles.json" });
     a.click();
     setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+  }
+
+  // The full-size result Save image wrote, sent by the kernel: offered as a download too.
+  function downloadImage(content, buffer) {
+    const blob = new Blob([buffer], { type: content.mime || "application/octet-stream" });
+    const a = el("a", { href: URL.createObjectURL(blob), download: content.name || "panorama-rectified.png" });
+    root.append(a); // some browsers click only links in the document
+    a.click();
+    a.remove();
+    root.dataset.savedImage = content.name || "";
+    setTimeout(() => URL.revokeObjectURL(a.href), 10000);
   }
 
   fileInput.addEventListener("change", async () => {
