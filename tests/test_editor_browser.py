@@ -12,6 +12,8 @@ as it is, drawn dash-dot in green with its warning on hover.
 
 from __future__ import annotations
 
+import contextlib
+
 import json
 from pathlib import Path
 
@@ -470,17 +472,28 @@ def magnification(result, index):
 """
 
 
-def test_an_arrow_tip_dragged_to_scale_2_magnifies_the_result_2x_at_the_point(jupyter_server, browser):
-    """A point's east arrow tip dragged (transform stage) to where scale 2 puts it: the handle zooms 2x, and so does the result."""
-    bh.write_notebook(jupyter_server.root / "arrow.ipynb", NOTEBOOK)
-    with bh.NotebookPage(browser, jupyter_server, "arrow.ipynb") as nb:
+@contextlib.contextmanager
+def _editor_with(jupyter_server, browser, name: str, handle: dict, what: str):
+    """The editor of NOTEBOOK in JupyterLab with the rectified window line and ``handle``, its result on screen.
+
+    Yields the notebook page, the kernel client and the generation of that result.
+    """
+    bh.write_notebook(jupyter_server.root / f"{name}.ipynb", NOTEBOOK)
+    with bh.NotebookPage(browser, jupyter_server, f"{name}.ipynb") as nb:
         nb.run_all()
         nb.wait_for_output(".ow-editor")
         generation = wait_idle(nb, 0, "the first result on screen")
-        page, client = nb.page, nb.kernel_client()
+        client = nb.kernel_client()
         line = {"kind": "line", "start": list(WINDOW_TOP[0]), "end": list(WINDOW_TOP[1]), "rectify": True}
-        bh.run_in_kernel(client, f"ed.handles = {{'handles': [{line!r}, {{'kind': 'point', 'position': [100.0, -10.0]}}]}}")
-        generation = wait_idle(nb, generation, "the result with the line and the point")
+        bh.run_in_kernel(client, f"ed.handles = {{'handles': [{line!r}, {handle!r}]}}")
+        yield nb, client, wait_idle(nb, generation, what)
+
+
+def test_an_arrow_tip_dragged_to_scale_2_magnifies_the_result_2x_at_the_point(jupyter_server, browser):
+    """A point's east arrow tip dragged (transform stage) to where scale 2 puts it: the handle zooms 2x, and so does the result."""
+    point = {"kind": "point", "position": [100.0, -10.0]}
+    with _editor_with(jupyter_server, browser, "arrow", point, "the result with the line and the point") as (nb, client, _):
+        page = nb.page
         nb.output('[data-stage="transform"]').click()
         point = ow.Handles.from_dict(kernel_json(client, "ed.handles")).handles[1]
         assert point.scale == 1.0 and point.rotation == 0.0
@@ -517,15 +530,8 @@ CAGE = {"kind": "cage", "vertices": [[-70.0, -5.0], [-30.0, -5.0], [-30.0, -45.0
 
 def test_a_large_cage_dragged_carries_its_inside_rigidly(jupyter_server, browser):
     """A 40° cage (with a rectified line elsewhere) dragged by its edge in the transform stage: its inside moves as the cage does."""
-    bh.write_notebook(jupyter_server.root / "cage.ipynb", NOTEBOOK)
-    with bh.NotebookPage(browser, jupyter_server, "cage.ipynb") as nb:
-        nb.run_all()
-        nb.wait_for_output(".ow-editor")
-        generation = wait_idle(nb, 0, "the first result on screen")
-        page, client = nb.page, nb.kernel_client()
-        line = {"kind": "line", "start": list(WINDOW_TOP[0]), "end": list(WINDOW_TOP[1]), "rectify": True}
-        bh.run_in_kernel(client, f"ed.handles = {{'handles': [{line!r}, {CAGE!r}]}}")
-        generation = wait_idle(nb, generation, "the result with the line and the cage")
+    with _editor_with(jupyter_server, browser, "cage", CAGE, "the result with the line and the cage") as (nb, client, _):
+        page = nb.page
         nb.output('[data-stage="transform"]').click()
         result = Pane(nb, "result")
         grab = coords.geodesic_midpoint(*CAGE["vertices"][:2])  # on the cage's top edge: the whole cage moves
@@ -569,15 +575,8 @@ def kept_pattern(pane: Pane, shot: np.ndarray) -> np.ndarray:
 
 def test_a_line_over_the_pole_is_kept_drawn_dashed_and_its_warning_shows_on_hover(jupyter_server, browser):
     """With the still background a rectified line over the pole is kept as it is: listed, drawn dash-dot in green, explained on hover."""
-    bh.write_notebook(jupyter_server.root / "pole.ipynb", NOTEBOOK)
-    with bh.NotebookPage(browser, jupyter_server, "pole.ipynb") as nb:
-        nb.run_all()
-        nb.wait_for_output(".ow-editor")
-        generation = wait_idle(nb, 0, "the first result on screen")
-        page, client = nb.page, nb.kernel_client()
-        line = {"kind": "line", "start": list(WINDOW_TOP[0]), "end": list(WINDOW_TOP[1]), "rectify": True}
-        bh.run_in_kernel(client, f"ed.handles = {{'handles': [{line!r}, {POLE_LINE!r}]}}")
-        wait_idle(nb, generation, "the result with the pole line")
+    with _editor_with(jupyter_server, browser, "pole", POLE_LINE, "the result with the pole line") as (nb, client, _):
+        page = nb.page
         status = kernel_json(client, "ed.status")
         assert status["kept"] == [1] and 1 not in status["conflicts"], status
         (warning,) = [w for w in status["warnings"] if w.startswith("handles[1] (line) passes")]

@@ -20,10 +20,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import coords
-from .constraints import SAMPLES, Constraints, Control, build_constraints
+from .constraints import POINT_HOLD, SAMPLES, Constraints, Control, build_constraints
 from .handles import CageHandle, Handles, LineHandle, PointHandle
 from .moebius import Moebius
-from .quality import FoldOver, Summary, fold_over
+from .quality import FoldOver, Summary, fold_over, inside_polygon
 from .warping import (
     PAD,
     GridInverse,
@@ -270,8 +270,6 @@ def _with_background(
     """
     from scipy.spatial import cKDTree
 
-    from .constraints import POINT_HOLD
-
     owner = np.argmax(constraints.values, axis=1)
     still = np.ones(len(vertices), dtype=bool)
     for c in np.unique(owner):
@@ -304,8 +302,6 @@ def _cage_insides(constraints: Constraints, vertices: NDArray[np.float64]) -> li
     handle inside the cage); every other control's weight inside is set to 0 after the solve
     (:func:`_carry_insides`), so a cage carries its inside by its own maps.
     """
-    from .quality import inside_polygon
-
     lonlat = coords.xyz_to_lonlat(vertices)
     prescribed = coords.xyz_to_lonlat(constraints.points)
     out = []
@@ -370,8 +366,6 @@ def ease_background(weights: NDArray[np.float64], power: float = BACKGROUND_EASE
 
 def _inside_fixed_cages(handles: Handles) -> list[str]:
     """Warnings for handles that move something inside a cage that holds its inside still (the paper's Fig. 15)."""
-    from .quality import inside_polygon
-
     found = []
     for i, cage in enumerate(handles.handles):
         if not isinstance(cage, CageHandle) or cage.finals != cage.vertices:

@@ -836,8 +836,7 @@ class Summary:
 def _chains(result: Any) -> list[NDArray[np.float64]]:
     """Each straight output segment's samples found in the output, ``[lon, lat]`` (s, 2): its pieces' in order."""
     lines = result.constraints.lines
-    chains = getattr(result.constraints, "chains", ()) or tuple((k,) for k in range(len(lines)))
-    return [np.concatenate([result.forward_points(lines[k][1], lines[k][0]) for k in chain]) for chain in chains]
+    return [np.concatenate([result.forward_points(lines[k][1], lines[k][0]) for k in chain]) for chain in result.constraints.chains]
 
 
 def summary(result: Any) -> Summary:
