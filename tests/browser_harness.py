@@ -1,14 +1,15 @@
-"""Real-browser test harness for anywidget widgets running in JupyterLab.
+"""Real-browser test harness for anywidget widgets in JupyterLab and Jupyter Notebook 7.
 
 This is a plain helper module (not collected by pytest).  It drives a real
-JupyterLab server and a headless Debian Chromium through Playwright, so a test
-can open a notebook, run it, poke the rendered widget, and inspect the *same*
-kernel from Python::
+Jupyter server with either front end (:data:`FRONTENDS`: ``"lab"`` for JupyterLab,
+``"notebook"`` for Jupyter Notebook 7) and a headless Debian Chromium through
+Playwright, so a test can open a notebook, run it, poke the rendered widget, and
+inspect the *same* kernel from Python::
 
     from tests import browser_harness as bh
 
-    bh.require_browser()  # skip (or fail when OMNIWIDGET_BROWSER_TESTS=1)
-    with bh.JupyterServer(name="demo") as server, bh.launch_browser() as browser:
+    bh.require_browser("notebook")  # skip (or fail when OMNIWIDGET_BROWSER_TESTS=1)
+    with bh.JupyterServer(name="demo", frontend="notebook") as server, bh.launch_browser() as browser:
         bh.write_notebook(server.root / "demo.ipynb", ["import anywidget", "w = MyWidget()\\nw"])
         with bh.NotebookPage(browser, server, "demo.ipynb") as nb:
             nb.run_all()  # raises CellExecutionError with the traceback if a cell fails
@@ -18,16 +19,24 @@ kernel from Python::
             bh.run_in_kernel(kc, "w.value = 5")
             with nb.explain("the button to show 5"):
                 expect(nb.output("button.my-widget")).to_have_text("5")  # playwright.sync_api.expect
-            nb.screenshot("demo")  # -> test-artifacts/demo.png
+            nb.screenshot("demo")  # -> test-artifacts/demo-notebook7.png (test-artifacts/demo.png in JupyterLab)
             assert nb.console_errors() == []
+
+In the test suite the session fixture ``jupyter_server`` (tests/conftest.py) is
+parametrized over both front ends, so every real-browser test runs in JupyterLab
+and in Notebook 7.
 
 Design notes
 ------------
-* The server runs with ``--LabApp.expose_app_in_browser=True`` so the page has
+* Both front ends are JupyterLab applications (Notebook 7 is built from the same
+  notebook, output-area and widget-manager packages; only its shell differs).  The
+  server exposes the application in the browser (``--LabApp.expose_app_in_browser``
+  or ``--JupyterNotebookApp.expose_app_in_browser``), so the page has
   ``window.jupyterapp``; cells are run with the very command the
   "Run > Run All Cells" menu item uses (``notebook:run-all-cells``), invoked
   through the application's command registry.  That avoids flaky menu/keyboard
-  focus handling while exercising the same code path.
+  focus handling while exercising the same code path.  What differs between the
+  front ends (the app, the notebook's URL, the flags) is in :class:`Frontend`.
 * Everything that waits polls a condition with a timeout and, on failure,
   raises with what was waited for plus diagnostics (notebook/kernel state,
   console errors, tail of the server log).
@@ -91,20 +100,109 @@ LAB_USER_SETTINGS: dict[str, dict[str, Any]] = {
     "@jupyter-widgets/jupyterlab-manager/plugin": {"saveState": True},
 }
 
-#: Console errors that JupyterLab itself emits while running offline/headless and that
+
+@dataclass(frozen=True)
+class Frontend:
+    """What differs between the two Jupyter front ends the harness drives.
+
+    Everything else (``window.jupyterapp``, the notebook panel, its session context,
+    the ``notebook:run-all-cells`` and ``docmanager:save`` commands, the
+    ``.jp-OutputArea-output`` nodes the widgets render into, the user settings) is
+    the same in both, as both are built from JupyterLab's packages.
+    """
+
+    key: str
+    """``"lab"`` or ``"notebook"`` (the ``frontend=`` argument of :class:`JupyterServer`)."""
+    title: str
+    """Human-readable name, for messages."""
+    module: str
+    """The Python package that is the server application (``python -m <module>``)."""
+    app_name: str
+    """``window.jupyterapp.name`` in its pages: checked when a notebook opens, so a test id can't lie."""
+    notebook_route: str
+    """URL path prefix under which a notebook opens (followed by its path)."""
+    open_query: tuple[tuple[str, str], ...]
+    """Query parameters added to the notebook's URL (JupyterLab: ``?reset``, a fresh workspace)."""
+    args: tuple[str, ...]
+    """Command-line arguments specific to this front end's server application."""
+    artifact_suffix: str
+    """Appended to the names of the artifacts a test writes, so both front ends keep theirs."""
+    allowed_console_errors: tuple[tuple[str, str], ...] = ()
+    """Like :data:`ALLOWED_CONSOLE_ERRORS`, for this front end only, and matched (``re.search``) against
+    the whole entry, ``str(ConsoleError)``: its kind, text and location (a page error's stack), so an
+    entry can be pinned to the front end's own code."""
+
+
+#: Arguments for the JupyterLab server extension, which every Jupyter server here loads
+#: (Notebook 7's too: it also serves /lab): no news feed, no update check, no PyPI
+#: extension manager, so no request to the network.
+_LAB_OFFLINE_ARGS = (
+    "--LabApp.news_url=None",
+    "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate",
+    "--LabApp.extension_manager=readonly",
+)
+
+#: The front ends, by key.  Both run on the same jupyter_server, kernels and widget manager.
+FRONTENDS: dict[str, Frontend] = {
+    "lab": Frontend(
+        key="lab",
+        title="JupyterLab",
+        module="jupyterlab",
+        app_name="JupyterLab",
+        notebook_route="/lab/tree/",
+        open_query=(("reset", ""),),
+        # window.jupyterapp, used to drive commands and read notebook/kernel state.
+        args=(*_LAB_OFFLINE_ARGS, "--LabApp.expose_app_in_browser=True"),
+        artifact_suffix="",  # the historical names (bench/ reads test-artifacts/editor_latency.json)
+    ),
+    "notebook": Frontend(
+        key="notebook",
+        title="Jupyter Notebook 7",
+        module="notebook",
+        app_name="Jupyter Notebook",
+        notebook_route="/notebooks/",
+        open_query=(),  # Notebook 7 keeps no workspace: every page opens fresh
+        args=(*_LAB_OFFLINE_ARGS, "--JupyterNotebookApp.expose_app_in_browser=True"),
+        artifact_suffix="-notebook7",
+        allowed_console_errors=(
+            (
+                # thrown by Notebook 7's own bundle (the top stack frame), on any notebook, "1 + 1" too
+                r"^\[pageerror\] TypeError: Cannot read properties of undefined \(reading 'schema'\) "
+                r"\(TypeError: [^\n]*\n\s*at [^\n]*/static/notebook/notebook_core\.[0-9a-f]+\.js",
+                "Notebook 7's keyboard-shortcuts settings handler reads registry.plugins['@jupyterlab/shortcuts-extension:shortcuts']"
+                " before that plugin's settings are loaded, when another plugin's settings load first"
+                " (jupyter/notebook#7862, a race in Notebook 7 itself)",
+            ),
+        ),
+    ),
+}
+
+
+def get_frontend(key: str) -> Frontend:
+    """The :class:`Frontend` called ``key`` (``"lab"`` or ``"notebook"``)."""
+    try:
+        return FRONTENDS[key]
+    except KeyError:
+        raise ValueError(f"unknown Jupyter front end {key!r}; expected one of {sorted(FRONTENDS)}") from None
+
+
+#: Console errors that the front end itself emits while running offline/headless and that
 #: have nothing to do with widgets.  Each entry is ``(regex, why it is harmless)``; the
 #: regex is matched (``re.search``) against the message text.  Keep this list minimal.
+#: Those of one front end only are in its :attr:`Frontend.allowed_console_errors`.
 ALLOWED_CONSOLE_ERRORS: tuple[tuple[str, str], ...] = ()
 
 
 # --------------------------------------------------------------------------- prerequisites
 
 
-def require_browser() -> None:
+def require_browser(*frontends: str) -> None:
     """Skip the calling test unless a real-browser run is possible.
 
     Needs the Chromium binary at :data:`CHROMIUM` and the ``playwright``,
-    ``jupyterlab``, ``jupyter_client`` and ``nbformat`` packages.  When the
+    ``jupyter_client`` and ``nbformat`` packages, plus the server application of each
+    front end named in ``frontends`` (``jupyterlab`` for ``"lab"``, the default;
+    ``notebook`` for ``"notebook"``).  When the
     environment variable ``OMNIWIDGET_BROWSER_TESTS=1`` is set (CI), a missing
     prerequisite calls :func:`pytest.fail` instead of :func:`pytest.skip`, so
     browser tests can never silently disappear.
@@ -112,7 +210,8 @@ def require_browser() -> None:
     missing = []
     if not (os.path.isfile(CHROMIUM) and os.access(CHROMIUM, os.X_OK)):
         missing.append(f"chromium executable {CHROMIUM}")
-    for module in ("playwright", "jupyterlab", "jupyter_client", "nbformat"):
+    apps = tuple(dict.fromkeys(get_frontend(key).module for key in frontends or ("lab",)))
+    for module in ("playwright", *apps, "jupyter_client", "nbformat"):
         if importlib.util.find_spec(module) is None:
             missing.append(f"python package {module!r}")
     if not missing:
@@ -176,7 +275,10 @@ def _free_port() -> int:
 
 
 class JupyterServer:
-    """A throw-away JupyterLab server on 127.0.0.1 with isolated config, for one test module.
+    """A throw-away Jupyter server (JupyterLab or Notebook 7) on 127.0.0.1 with isolated config.
+
+    ``frontend`` picks the application: ``"lab"`` (JupyterLab, the default) or
+    ``"notebook"`` (Jupyter Notebook 7); see :data:`FRONTENDS`.
 
     Use as a context manager (or call :meth:`start` / :meth:`stop`).  The user-level
     Jupyter *config*, *runtime*, lab *settings* and *workspaces* dirs, the notebook
@@ -188,6 +290,8 @@ class JupyterServer:
 
     Attributes
     ----------
+    frontend : Frontend
+        The front end this server runs.
     url : str
         Base URL, e.g. ``http://127.0.0.1:43125``.
     token : str
@@ -200,7 +304,10 @@ class JupyterServer:
         Server stdout/stderr.
     """
 
-    def __init__(self, *, name: str = "server", startup_timeout: float = 90.0, extra_args: Sequence[str] = ()) -> None:
+    def __init__(
+        self, *, name: str = "server", frontend: str = "lab", startup_timeout: float = 90.0, extra_args: Sequence[str] = ()
+    ) -> None:
+        self.frontend = get_frontend(frontend)
         self.name = name
         self.startup_timeout = startup_timeout
         self.extra_args = tuple(extra_args)
@@ -254,7 +361,7 @@ class JupyterServer:
         cmd = [
             sys.executable,
             "-m",
-            "jupyterlab",
+            self.frontend.module,
             "--no-browser",
             "--ip=127.0.0.1",
             f"--port={self.port}",
@@ -266,12 +373,8 @@ class JupyterServer:
             "--ServerApp.disable_check_xsrf=True",
             # Keep the notebook-signing secret/db out of ~/.local/share/jupyter.
             f"--NotebookNotary.data_dir={self._base / 'notary'}",
-            # No network: no news feed, no update check, no PyPI extension manager.
-            "--LabApp.news_url=None",
-            "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate",
-            "--LabApp.extension_manager=readonly",
-            # window.jupyterapp, used to drive commands and read notebook/kernel state.
-            "--LabApp.expose_app_in_browser=True",
+            # No network, and window.jupyterapp (see FRONTENDS).
+            *self.frontend.args,
             *self.extra_args,
         ]
         self.log_path = self.root / "jupyter-server.log"
@@ -284,7 +387,7 @@ class JupyterServer:
                 self._is_up,
                 timeout=self.startup_timeout,
                 interval=0.2,
-                description=f"JupyterLab at {self.url}/api/status",
+                description=f"{self.frontend.title} at {self.url}/api/status",
                 diagnostics=lambda: f"server log tail:\n{self.log_tail()}",
             )
         except BaseException:
@@ -294,7 +397,9 @@ class JupyterServer:
 
     def _is_up(self) -> bool:
         if self.process is not None and self.process.poll() is not None:
-            raise RuntimeError(f"JupyterLab exited with code {self.process.returncode}\nserver log tail:\n{self.log_tail()}")
+            raise RuntimeError(
+                f"{self.frontend.title} server exited with code {self.process.returncode}\nserver log tail:\n{self.log_tail()}"
+            )
         try:
             with urllib.request.urlopen(f"{self.url}/api/status?token={self.token}", timeout=2) as resp:
                 return resp.status == 200
@@ -356,9 +461,30 @@ class JupyterServer:
         return json.loads(payload) if payload else None
 
     def lab_url(self, path: str, **query: str) -> str:
-        """URL of a notebook (path relative to :attr:`root`) in JupyterLab, with the token."""
+        """URL of a notebook (path relative to :attr:`root`) in JupyterLab, with the token.
+
+        Only a JupyterLab server exposes ``window.jupyterapp`` there; use :meth:`notebook_url`
+        for the notebook in this server's own front end.
+        """
         params = urllib.parse.urlencode({**query, "token": self.token})
         return f"{self.url}/lab/tree/{urllib.parse.quote(path)}?{params}"
+
+    def notebook_url(self, path: str, **query: str) -> str:
+        """URL of a notebook (path relative to :attr:`root`) in this server's front end, with the token.
+
+        JupyterLab: ``/lab/tree/<path>?reset`` (a fresh workspace); Notebook 7: ``/notebooks/<path>``.
+        """
+        params = urllib.parse.urlencode({**dict(self.frontend.open_query), **query, "token": self.token})
+        return f"{self.url}{self.frontend.notebook_route}{urllib.parse.quote(path)}?{params}"
+
+    def artifact(self, filename: str) -> Path:
+        """``artifact_dir()/<filename>``, with this front end's suffix before the extension.
+
+        JupyterLab keeps the plain name; Notebook 7 gets ``-notebook7`` (``editor.png`` ->
+        ``editor-notebook7.png``), so a test running in both keeps both artifacts.
+        """
+        name = Path(filename)
+        return artifact_dir() / f"{name.stem}{self.frontend.artifact_suffix}{name.suffix}"
 
 
 # --------------------------------------------------------------------------- notebooks
@@ -415,8 +541,9 @@ class ConsoleCollector:
     to the page (:meth:`flush`) to deliver everything already emitted.
     """
 
-    def __init__(self, page: Any) -> None:
+    def __init__(self, page: Any, allowed: Sequence[tuple[str, str]] = ()) -> None:
         self.page = page
+        self.allowed_patterns = tuple(allowed)
         self.entries: list[ConsoleError] = []
         page.on("console", self._on_console)
         page.on("pageerror", self._on_pageerror)
@@ -439,10 +566,11 @@ class ConsoleCollector:
         text = f"{error.name}: {error.message}" if getattr(error, "name", None) else str(error)
         self.entries.append(ConsoleError("pageerror", text, (getattr(error, "stack", "") or "").strip()))
 
-    @staticmethod
-    def is_allowed(entry: ConsoleError) -> bool:
-        """Whether ``entry`` matches :data:`ALLOWED_CONSOLE_ERRORS`."""
-        return any(re.search(pattern, entry.text) for pattern, _why in ALLOWED_CONSOLE_ERRORS)
+    def is_allowed(self, entry: ConsoleError) -> bool:
+        """Whether ``entry`` matches :data:`ALLOWED_CONSOLE_ERRORS` (its text) or ``allowed`` (the whole entry)."""
+        return any(re.search(pattern, entry.text) for pattern, _why in ALLOWED_CONSOLE_ERRORS) or any(
+            re.search(pattern, str(entry)) for pattern, _why in self.allowed_patterns
+        )
 
     def errors(self) -> list[str]:
         """Errors seen so far that are not allow-listed, as readable strings."""
@@ -535,7 +663,7 @@ class CellExecutionError(AssertionError):
 
 
 class NotebookPage:
-    """A JupyterLab tab showing one notebook of a :class:`JupyterServer`, in its own browser context.
+    """A browser tab showing one notebook of a :class:`JupyterServer` in its front end, in its own browser context.
 
     Parameters
     ----------
@@ -548,8 +676,9 @@ class NotebookPage:
     timeout
         Default timeout in seconds for opening and waiting.
 
-    Opening loads ``/lab/tree/<name>?reset`` (fresh workspace), waits until the
-    notebook's kernel is connected and idle, and starts collecting console errors
+    Opening loads the notebook's URL (:meth:`JupyterServer.notebook_url`: JupyterLab's
+    ``/lab/tree/<name>?reset``, a fresh workspace, or Notebook 7's ``/notebooks/<name>``),
+    waits until the notebook's kernel is connected and idle, and starts collecting console errors
     (:meth:`console_errors`).  Closing closes the browser context and shuts the
     notebook's kernel down.
     """
@@ -578,11 +707,14 @@ class NotebookPage:
         self.context = self.browser.new_context(viewport={"width": 1280, "height": 900})
         self.context.set_default_timeout(self.timeout * 1000)
         self.page = self.context.new_page()
-        self.console = ConsoleCollector(self.page)
-        self.page.goto(self.server.lab_url(self.name, reset=""), wait_until="domcontentloaded")
+        self.console = ConsoleCollector(self.page, self.server.frontend.allowed_console_errors)
+        self.page.goto(self.server.notebook_url(self.name), wait_until="domcontentloaded")
         self.panel_id = self._wait_js(
             _JS_NOTEBOOK_READY, f"notebook {self.name!r} open with an idle, connected kernel", timeout=self.timeout
         )
+        app = self.page.evaluate("() => window.jupyterapp.name")
+        if app != self.server.frontend.app_name:
+            raise AssertionError(f"{self.page.url} runs {app!r}, not {self.server.frontend.app_name!r} ({self.server.frontend.title})")
         return self
 
     def close(self, *, shutdown_kernel: bool = True) -> None:
@@ -665,11 +797,11 @@ class NotebookPage:
     # -- inspection --------------------------------------------------------
 
     def state(self) -> dict[str, Any]:
-        """JupyterLab-side state of this notebook: open widgets, kernel status, per-cell outputs."""
+        """Front-end-side state of this notebook: open widgets, kernel status, per-cell outputs."""
         return self.page.evaluate(_JS_STATE, self.name)
 
     def console_errors(self) -> list[str]:
-        """Browser console errors / page errors seen so far, minus :data:`ALLOWED_CONSOLE_ERRORS`."""
+        """Browser console errors / page errors seen so far, minus :data:`ALLOWED_CONSOLE_ERRORS` and the front end's own."""
         return self.console.errors() if self.console else []
 
     def diagnostics(self) -> str:
@@ -680,14 +812,15 @@ class NotebookPage:
             state = f"<unavailable: {exc}>"
         console = "\n".join(str(e) for e in self.console.entries) if self.console else ""
         return (
+            f"--- front end ---\n{self.server.frontend.title} at {self.page.url if self.page else '<no page>'}\n"
             f"--- notebook state ---\n{_ANSI.sub('', state)}\n"
             f"--- browser console errors ---\n{console or '<none>'}\n"
             f"--- server log tail ---\n{self.server.log_tail()}"
         )
 
     def screenshot(self, name: str) -> Path:
-        """Save a PNG screenshot of the page to ``artifact_dir()/<name>.png``; return the path."""
-        path = artifact_dir() / f"{name}.png"
+        """Save a PNG screenshot of the page to :meth:`JupyterServer.artifact` ``(<name>.png)``; return the path."""
+        path = self.server.artifact(f"{name}.png")
         self.page.screenshot(path=str(path))
         return path
 
@@ -711,6 +844,11 @@ def kernel_client(server: JupyterServer, notebook_name: str, *, timeout: float =
     The kernel is found through ``/api/sessions`` (session path == ``notebook_name``) and
     its connection file ``kernel-<id>.json`` read from ``server.runtime_dir``.  Call
     ``client.stop_channels()`` when done.
+
+    A kernel that is still starting (just after a restart, say) is waited for: a client
+    without a kernel manager judges the kernel by its heartbeat, which misses a beat while
+    the new process imports, and ``wait_for_ready`` then gives up with "Kernel died before
+    replying to kernel_info"; that is retried with a fresh client until ``timeout``.
     """
     from jupyter_client import BlockingKernelClient
 
@@ -727,15 +865,23 @@ def kernel_client(server: JupyterServer, notebook_name: str, *, timeout: float =
         description=f"a kernel session for {notebook_name!r} and its connection file in {server.runtime_dir}",
         diagnostics=lambda: f"sessions: {server.api('GET', '/api/sessions')}\nserver log tail:\n{server.log_tail()}",
     )
-    client = BlockingKernelClient()
-    client.load_connection_file(str(connection_file))
-    client.start_channels()
-    try:
-        client.wait_for_ready(timeout=timeout)
-    except BaseException:
-        client.stop_channels()
-        raise
-    return client
+    deadline = time.monotonic() + timeout
+    while True:
+        client = BlockingKernelClient()
+        client.load_connection_file(str(connection_file))
+        client.start_channels()
+        try:
+            client.wait_for_ready(timeout=max(deadline - time.monotonic(), 1.0))
+        except RuntimeError as exc:
+            client.stop_channels()
+            if "died" not in str(exc) or time.monotonic() >= deadline:
+                raise
+            time.sleep(0.5)  # still starting: its heartbeat missed a beat
+        except BaseException:
+            client.stop_channels()
+            raise
+        else:
+            return client
 
 
 def run_in_kernel(client: Any, code: str, timeout: float = 60) -> str:

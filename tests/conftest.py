@@ -49,13 +49,23 @@ def offset(lonlat, bearing_deg: float, distance_deg: float) -> np.ndarray:
     return coords.xyz_to_lonlat(np.cos(d) * p + np.sin(d) * (np.cos(b) * east + np.sin(b) * north))
 
 
-@pytest.fixture(scope="session")
-def jupyter_server():
-    """One JupyterLab server for every real-browser test (tests/browser_harness.py)."""
+#: The front ends every real-browser test runs in: ``jupyter_server`` param -> test id.
+JUPYTER_FRONTENDS = {"lab": "jupyterlab", "notebook": "notebook7"}
+
+
+@pytest.fixture(scope="session", params=list(JUPYTER_FRONTENDS), ids=list(JUPYTER_FRONTENDS.values()))
+def jupyter_server(request):
+    """A Jupyter server for the real-browser tests (tests/browser_harness.py), once per front end.
+
+    Parametrized over JupyterLab (id ``jupyterlab``) and Jupyter Notebook 7 (id ``notebook7``):
+    every test using it runs in both, e.g. ``test_draw_rectify_turn_undo[notebook7]``.  pytest
+    groups the tests by front end, so each session starts one server per front end; a test
+    reads which one from ``jupyter_server.frontend.key`` (``"lab"`` or ``"notebook"``).
+    """
     from tests import browser_harness as bh
 
-    bh.require_browser()
-    with bh.JupyterServer(name="browser-tests") as server:
+    bh.require_browser(request.param)
+    with bh.JupyterServer(name=f"browser-tests-{JUPYTER_FRONTENDS[request.param]}", frontend=request.param) as server:
         yield server
 
 

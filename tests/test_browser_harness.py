@@ -1,6 +1,6 @@
 """End-to-end check of the real-browser harness with a tiny inline anywidget.
 
-Runs JupyterLab + headless Chromium; skipped when they are unavailable unless
+Runs in JupyterLab and in Notebook 7 (the ``jupyter_server`` fixture), with headless Chromium; skipped when they are unavailable unless
 ``OMNIWIDGET_BROWSER_TESTS=1`` (then it fails instead).
 """
 
@@ -101,3 +101,34 @@ def test_harness_reports_cell_and_console_errors(jupyter_server, browser):
         assert bh.run_in_kernel(client, "print(x + 1)") == "2\n"
         with pytest.raises(bh.KernelExecutionError, match="NameError"):
             bh.run_in_kernel(client, "undefined_name")
+
+
+def test_each_front_end_opens_notebooks_at_its_own_url_and_keeps_its_own_artifacts(monkeypatch, tmp_path):
+    """No browser: what differs between JupyterLab and Notebook 7 (the ``jupyter_server`` fixture runs both)."""
+    monkeypatch.setenv("OMNIWIDGET_ARTIFACTS", str(tmp_path))
+    lab, notebook = bh.JupyterServer(frontend="lab"), bh.JupyterServer(frontend="notebook")
+    for server in (lab, notebook):
+        server.url, server.token = "http://127.0.0.1:8888", "secret"
+    assert lab.notebook_url("a b.ipynb") == "http://127.0.0.1:8888/lab/tree/a%20b.ipynb?reset=&token=secret"
+    assert notebook.notebook_url("a b.ipynb") == "http://127.0.0.1:8888/notebooks/a%20b.ipynb?token=secret"
+    assert lab.frontend.module == "jupyterlab" and "--LabApp.expose_app_in_browser=True" in lab.frontend.args
+    assert notebook.frontend.module == "notebook" and "--JupyterNotebookApp.expose_app_in_browser=True" in notebook.frontend.args
+    assert lab.artifact("editor_latency.json") == tmp_path / "editor_latency.json"  # the name bench/ reads
+    assert notebook.artifact("editor_latency.json") == tmp_path / "editor_latency-notebook7.json"
+    with pytest.raises(ValueError, match="unknown Jupyter front end 'classic'"):
+        bh.JupyterServer(frontend="classic")
+
+
+def test_notebook7s_own_error_is_allowed_only_there_and_only_from_its_own_code():
+    class Page:
+        def on(self, *_):
+            pass
+
+    text = "TypeError: Cannot read properties of undefined (reading 'schema')"
+    stack = f"{text}\n    at http://127.0.0.1:1/static/notebook/notebook_core.c9a6d9df5de5df84.js?v=c9:501:207"
+    own = bh.ConsoleError("pageerror", text, stack)
+    widget = bh.ConsoleError("pageerror", text, f"{text}\n    at render (blob:http://127.0.0.1:1/0b6c2d4e:12:5)")
+    notebook = bh.ConsoleCollector(Page(), bh.FRONTENDS["notebook"].allowed_console_errors)
+    lab = bh.ConsoleCollector(Page(), bh.FRONTENDS["lab"].allowed_console_errors)
+    assert notebook.is_allowed(own) and not notebook.is_allowed(widget)
+    assert not lab.is_allowed(own)

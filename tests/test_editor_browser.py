@@ -1,4 +1,7 @@
-"""The editor in a real browser: JupyterLab, Debian's Chromium, a person's mouse and keyboard (Playwright).
+"""The editor in a real browser: JupyterLab and Notebook 7, Debian's Chromium, a person's mouse and keyboard (Playwright).
+
+Every test runs in both front ends (the ``jupyter_server`` fixture is parametrized: test ids
+``[jupyterlab]`` and ``[notebook7]``).
 
 One notebook, one story: draw a line over the bent top edge of the window wall in the
 bundled panorama, check the kernel holds it where it was drawn, rectify all lines, see the
@@ -90,7 +93,7 @@ def wait_idle(nb, after_generation: int, what: str) -> int:
     return bh.wait_until(shown, timeout=60, description=what, diagnostics=nb.diagnostics)
 
 
-def test_draw_rectify_turn_undo_in_jupyterlab(jupyter_server, browser):
+def test_draw_rectify_turn_undo(jupyter_server, browser):
     bh.write_notebook(jupyter_server.root / "editor.ipynb", NOTEBOOK)
     with bh.NotebookPage(browser, jupyter_server, "editor.ipynb") as nb:
         nb.run_all()
@@ -134,7 +137,7 @@ def test_draw_rectify_turn_undo_in_jupyterlab(jupyter_server, browser):
         assert straightness < 0.3, f"the rectified line is {straightness:.2f} px from straight"
         nb.output('[data-action="handles"]').click()
 
-        # 3. keys stay in the editor: "d d" is the draw stage here, not JupyterLab's "delete cell"
+        # 3. keys stay in the editor: "d d" is the draw stage here, not the notebook's "delete cell"
         page.keyboard.press("d")
         page.keyboard.press("d")
         bh.wait_until(lambda: kernel_json(client, "ed.stage") == "draw", timeout=20, description="the draw stage after 'd'")
@@ -226,7 +229,7 @@ def test_draw_rectify_turn_undo_in_jupyterlab(jupyter_server, browser):
             "median_ms": float(np.median(latencies)),
             "kernel_compute_s": status["seconds"],
         }
-        (bh.artifact_dir() / "editor_latency.json").write_text(json.dumps(figure, indent=2) + "\n")
+        jupyter_server.artifact("editor_latency.json").write_text(json.dumps(figure, indent=2) + "\n")
         print(f"\nrelease to new image on screen, {count} handles at {status['width']} px: {figure['median_ms']:.0f} ms (median of 3)")
         assert status["width"] == 1024
         nb.screenshot("editor_scene")
@@ -266,7 +269,7 @@ def pane_pixels(nb, handle: int) -> np.ndarray:
     return bh.wait_until(drawn, timeout=30, description=f"the pane's WebGL canvas drawn for handle {handle}", diagnostics=nb.diagnostics)[0]
 
 
-def test_weights_pane_renders_rotates_and_follows_the_selection_in_jupyterlab(jupyter_server, browser):
+def test_weights_pane_renders_rotates_and_follows_the_selection(jupyter_server, browser):
     """Issue 6: the pyvista pane's html backend draws the mesh in a WebGL canvas; clicking a handle in the editor recolours it."""
     bh.write_notebook(jupyter_server.root / "pane.ipynb", PANE_NOTEBOOK)
     requests: list[str] = []
@@ -307,7 +310,7 @@ def test_weights_pane_renders_rotates_and_follows_the_selection_in_jupyterlab(ju
             timeout=10,
             description="the sphere turned by a drag",
         )[0]
-        cv2.imwrite(str(bh.artifact_dir() / "pane_handle1_turned.png"), turned)
+        cv2.imwrite(str(jupyter_server.artifact("pane_handle1_turned.png")), turned)
 
         # and zooms: the wheel brings the sphere closer, so it covers more of the canvas
         def sphere_share(shot: np.ndarray) -> float:
@@ -422,7 +425,7 @@ def test_a_kernel_error_mid_edit_and_a_kernel_restart_lose_no_handles(jupyter_se
             bh.wait_until(
                 lambda: (nb.state().get("kernel") or {}).get("status") == "idle",
                 timeout=30,
-                description="JupyterLab to see the restarted kernel idle",
+                description="the front end to see the restarted kernel idle",
                 diagnostics=nb.diagnostics,
             )
             nb.run_all()
@@ -474,7 +477,7 @@ def magnification(result, index):
 
 @contextlib.contextmanager
 def _editor_with(jupyter_server, browser, name: str, handle: dict, what: str):
-    """The editor of NOTEBOOK in JupyterLab with the rectified window line and ``handle``, its result on screen.
+    """The editor of NOTEBOOK in the server's front end with the rectified window line and ``handle``, its result on screen.
 
     Yields the notebook page, the kernel client and the generation of that result.
     """
