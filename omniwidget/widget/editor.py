@@ -272,6 +272,24 @@ def _finite_outputs(outputs: list[list[list[float]]]) -> bool:
     return all(np.isfinite(points).all() for points in outputs if points)
 
 
+_IMPORT = re.compile(r'^import \{([^}]*)\} from "\./(\w+)\.js";$', re.M)
+
+
+def _bundle() -> str:
+    """``static/editor.js`` with the modules it imports inlined: anywidget loads one module.
+
+    Each imported module (``moebius.js``, which ``node --test`` also imports on its own) runs
+    in a function scope of its own, so its private names do not clash with the editor's.
+    """
+
+    def inline(match: re.Match) -> str:
+        names = match.group(1).strip()
+        code = (_STATIC / f"{match.group(2)}.js").read_text(encoding="utf-8").replace("\nexport ", "\n")
+        return f"const {{ {names} }} = (() => {{\n{code}\nreturn {{ {names} }};\n}})();"
+
+    return _IMPORT.sub(inline, (_STATIC / "editor.js").read_text(encoding="utf-8"))
+
+
 class Editor(anywidget.AnyWidget):
     """Draw handles on an equirectangular panorama and see the rectified result as you go.
 
@@ -353,7 +371,7 @@ class Editor(anywidget.AnyWidget):
     >>> editor  # doctest: +SKIP
     """
 
-    _esm = _STATIC / "editor.js"
+    _esm = _bundle()
     _css = _STATIC / "editor.css"
 
     handles = _Document().tag(sync=True)
@@ -399,6 +417,7 @@ class Editor(anywidget.AnyWidget):
         self._generation = 0
         self._worker = Latest("omniwidget-editor")
         self._quality = Latest("omniwidget-editor-quality")
+        self._live = Latest("omniwidget-editor-live")
         self._measure = bool(quality)
         self._undo: list[dict] = []
         self._redo: list[dict] = []
@@ -785,6 +804,48 @@ class Editor(anywidget.AnyWidget):
         self.handles = load_handles(path).to_dict()
 
     # --- the front end's commands -----------------------------------------------------------
+    def _solve_drag(self, document: Any) -> None:
+        """Compute the preview of the handles a drag on the result has reached: no edit (no undo step, no autosave).
+
+        The live frame then draws from this result's weights (:meth:`_send_live_basis`); the
+        document itself changes when the drag ends.
+        """
+        doc = _as_document(document)
+        key = json.dumps(doc.to_dict(), sort_keys=True)
+        self._schedule(lambda generation: self._compute(doc, key, generation, full=False))
+
+    def _send_live_basis(self, index: Any) -> None:
+        """Send the browser what it needs to redraw the result live while handle ``index`` is dragged (:mod:`omniwidget.core.live`).
+
+        The basis of the result on screen: the other controls' part of eq. (2) and the
+        handle's own weights per preview pixel, as half floats. Nothing is sent when no
+        result is on screen or the handle has no control in it (a handle drawn meanwhile);
+        the browser then shows the drag as before, the kernel's result on release.
+        """
+        from ..core.live import live_basis
+
+        with self._lock:
+            result, generation = self._preview_result, self.status.get("generation")
+        if result is None or not isinstance(index, int) or not 0 <= index < len(result.handles):
+            return
+        try:
+            basis = live_basis(result, index)
+        except ValueError:
+            return
+        height, width = basis.fixed.shape[:2]
+        header = {
+            "op": "live",
+            "index": index,
+            "generation": generation,
+            "controls": len(basis.controls),
+            "carry": result.handles.options.anchor is not None,
+            "width": width,
+            "height": height,
+            "origin": list(basis.origin),
+            "size": basis.size,
+        }
+        self.send(header, [basis.packed().view(np.uint16).tobytes()])
+
     def _on_message(self, _widget: Any, content: Any, _buffers: Any) -> None:
         if not isinstance(content, dict):
             return
@@ -802,6 +863,12 @@ class Editor(anywidget.AnyWidget):
                 self.reset(content.get("index"))
             elif op == "arrow":
                 self.move_arrow(content.get("index"), content.get("tip"), content.get("which", "east"))
+            elif op == "drag":
+                self._solve_drag(content.get("handles"))
+            elif op == "refresh":
+                self._changed(self.document)
+            elif op == "live":
+                self._live.submit(lambda: self._send_live_basis(content.get("index")))
             elif op == "full":
                 self.compute_full()
             elif op == "save_image":

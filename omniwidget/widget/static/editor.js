@@ -10,8 +10,16 @@
 //
 // Drags happen here at display frame rate; only their end reaches the kernel, as a new
 // handles document or a command ({op: ...}) the kernel applies (undo, rectify, arrows).
+// While a control point is dragged on the result, the result follows it live (live.js):
+// the kernel sends the dragged handle's share of eq. (2) once, the GPU redoes the sum each
+// frame with the handle's maps rebuilt here (moebius.js), and the kernel's exact result
+// replaces the live frame once it arrives.
+
+import { arrowTip, dragMaps, inverse } from "./moebius.js";
+import { createLive, MOVING_PIXELS } from "./live.js";
 
 const DEG = Math.PI / 180;
+const LIVE_REST_MS = 120; // the mouse this long at rest: the live frame is drawn in full
 const ARROW_LENGTH = 0.3; // radians from a point's centre to its arrow tips (handles.ARROW_LENGTH)
 const HIT = 9; // px: how close a click must be to a control point
 const HIT_EDGE = 6; // px: ... to a line or cage edge
@@ -24,24 +32,30 @@ const TOOLS = [
   ["line", "Line", "L", "press, drag, release to draw a line"],
   ["cage", "Cage", "C", "click the vertices; close on the first vertex, Enter or double-click"],
 ];
+// A stage's key switches to it at once and the status bar says so (the toolbar's titles and
+// the help name the same keys): a letter meant for the notebook ("d d") cannot change the
+// view unnoticed.
 const STAGES = [
-  ["draw", "Draw", "D"],
-  ["transform", "Transform", "T"],
-  ["side", "Side by side", "B"],
+  ["draw", "Draw", "D", "the input only, to draw handles"],
+  ["transform", "Transform", "T", "the result only, to move control points"],
+  ["side", "Side by side", "B", "the input and the result"],
 ];
+// Every key the editor handles while it has the focus, the ones it passes to JupyterLab too.
 const SHORTCUTS = [
-  ["V P L C", "select, point, line, cage tool"],
-  ["D T B", "draw stage, transform stage, side by side"],
+  ["V P L C", "select, point, line, cage tool (named in the status bar)"],
+  ["D T B", "draw stage, transform stage, side by side (named in the status bar)"],
   ["Ctrl+Z / Ctrl+Shift+Z", "undo / redo (also Ctrl+Y)"],
   ["Delete, Backspace", "delete the selected handle"],
-  ["Esc", "cancel the handle being drawn or the drag in progress"],
   ["Enter, double-click", "close the cage being drawn"],
+  ["Esc", "cancel the handle being drawn, the drag in progress or this help; else back to the notebook"],
   ["wheel", "zoom about the cursor"],
   ["Space + drag, middle drag", "pan (wraps across the ±180° seam)"],
   ["F", "fit the panorama to the view"],
   ["H", "show or hide the handles"],
   ["A / S / R", "rectify all lines / rectify the selected line / reset the selected handle"],
   ["?", "this help"],
+  ["Ctrl+S", "save the notebook (passed on to JupyterLab)"],
+  ["Shift+Enter / Ctrl+Enter / Alt+Enter", "run the cell and select the next / run it / run it, insert a cell (passed on to JupyterLab)"],
 ];
 
 // --- the sphere (mirrors omniwidget/core/coords.py) ------------------------------------
@@ -185,19 +199,30 @@ function render({ model, el: host }) {
     help: false,
     released: null, // performance.now() of the last edit, for the latency figure
     cursor: null,
+    liveWanted: "", // "generation:index" of the live basis last asked for
+    liveBasis: null, // the header of the basis the GPU holds: {index, generation, controls, carry, ...}
+    liveMaps: null, // the dragged handle's inverse maps, to render at the next frame
+    liveShown: false, // the result pane shows the live frame (until the kernel's result arrives)
+    liveDrawn: null, // the basis header of the live frame drawn, and its step
+    dragSolve: 0, // performance.now() of the drag's solve on its way, 0 if none
+    liveLast: null, // the maps of the last live frame drawn
+    liveFine: false, // the next live frame in full (the mouse rests), not from every second pixel
+    liveRest: 0, // the timer that draws it
   };
 
   const root = el("div", {
     class: "ow-editor",
     tabindex: "0",
+    // JupyterLab's key bindings ignore keys typed in here (Lumino's CommandRegistry stops at
+    // this attribute), but for the few the keyboard section hands on to it (Ctrl+S, Shift+Enter...)
     "data-lm-suppress-shortcuts": "true",
     "data-busy": "false",
     "data-generation": "0",
   });
   const toolbar = el("div", { class: "ow-toolbar" });
   const stageGroup = el("div", { class: "ow-group" });
-  for (const [name, label, key] of STAGES) {
-    stageGroup.append(el("button", { "data-stage": name, title: `${label} (${key})`, onclick: () => setStage(name) }, label));
+  for (const [name, label, key, what] of STAGES) {
+    stageGroup.append(el("button", { "data-stage": name, title: `${label} (${key}): ${what}`, onclick: () => setStage(name) }, label));
   }
   const toolGroup = el("div", { class: "ow-group" });
   for (const [name, label, key, what] of TOOLS) {
@@ -271,9 +296,70 @@ function render({ model, el: host }) {
     el("h3", {}, "Keyboard and mouse"),
     el("table", {}, ...SHORTCUTS.map(([k, what]) => el("tr", {}, el("th", {}, k), el("td", {}, what)))),
     el("p", {}, "Positions are [lon, lat] in degrees whatever the zoom. Draw on the input; move control points on the result."),
+    el(
+      "p",
+      {},
+      "While the editor has the keyboard, other keys do nothing (none reaches the notebook's command mode: 'd d' deletes no cell); " +
+        "Esc or a click outside the editor gives it back to the notebook.",
+    ),
   );
   root.append(toolbar, panesBox, statusBar, helpBox);
   host.append(root);
+
+  // --- the live result while dragging (live.js) -----------------------------------------------
+  const liveCanvas = el("canvas", { class: "ow-live", hidden: "" });
+  root.append(liveCanvas);
+  let live = null;
+  try {
+    live = createLive(liveCanvas);
+  } catch (err) {
+    console.warn("omniwidget: the result will not follow drags live:", err);
+  }
+  root.dataset.live = live ? "ready" : "off";
+  root.dataset.liveFrames = "0";
+
+  // Ask the kernel for the basis of a live drag of handle i, once per result on screen.
+  function requestLive(i) {
+    const want = `${status().generation}:${i}`;
+    if (!live || i < 0 || state.liveWanted === want) return;
+    state.liveWanted = want;
+    model.send({ op: "live", index: i });
+  }
+
+  function onLiveBasis(content, buffer) {
+    if (!live || content.generation !== status().generation || !live.setBasis(content, buffer)) return; // a newer result is on screen
+    state.liveBasis = content;
+    root.dataset.liveBasis = `${content.generation}:${content.index}`;
+    root.dataset.liveRegion = JSON.stringify({ origin: content.origin, width: content.width, height: content.height, size: content.size });
+    const d = state.drag;
+    if (d && d.type === "move" && d.pane === "result" && d.moved) liveFrame(d);
+  }
+
+  // The live result of the drag d, rendered at the next frame when its basis is there.
+  function liveFrame(d) {
+    const b = state.liveBasis;
+    if (!b || b.generation !== status().generation) requestLive(d.index); // a newer solve's basis: asked for, the last one drawn meanwhile
+    if (!b || b.index !== d.index) return;
+    let maps;
+    try {
+      maps = dragMaps(items()[d.index], d.points, d.part, b.carry);
+    } catch (err) {
+      return; // control points on top of each other: no map, the last frame stays
+    }
+    if (maps.length === 1 && b.controls > 1) maps = Array(b.controls).fill(maps[0]); // a line's pieces share its map
+    if (maps.length !== b.controls) return;
+    state.liveMaps = maps.map(inverse);
+    state.liveFine = false;
+    clearTimeout(state.liveRest);
+    state.liveRest = setTimeout(() => {
+      if (state.drag === d) solveDuringDrag(d); // the mouse rests: the kernel's turn
+      if (!state.liveShown) return; // the kernel's result came first
+      state.liveMaps = state.liveLast;
+      state.liveFine = true; // every pixel of the region
+      draw();
+    }, LIVE_REST_MS);
+    draw();
+  }
 
   // --- model access ----------------------------------------------------------------------
   const doc = () => model.get("handles") || { handles: [] };
@@ -300,12 +386,13 @@ function render({ model, el: host }) {
   }
 
   function commit(handles) {
-    if (waitingForKernel()) return;
+    if (waitingForKernel()) return false;
     const next = { ...doc(), handles };
-    if (JSON.stringify(next) === JSON.stringify(doc())) return;
+    if (JSON.stringify(next) === JSON.stringify(doc())) return false;
     state.released = performance.now();
     model.set("handles", next);
     model.save_changes();
+    return true;
   }
 
   function command(op, content = {}) {
@@ -317,6 +404,10 @@ function render({ model, el: host }) {
     model.send({ op, ...content });
   }
   function onMessage(content, buffers) {
+    if (content && content.op === "live" && buffers && buffers.length) {
+      onLiveBasis(content, buffers[0]);
+      return;
+    }
     if (content && content.op === "image_file" && buffers && buffers.length) {
       downloadImage(content, buffers[0]);
       return;
@@ -475,6 +566,15 @@ function render({ model, el: host }) {
     for (const dx of offsets) p.ctx.drawImage(image, tx + dx, ty, k, k / 2);
   }
 
+  // The live frame over the result, where the dragged handle weighs (its region wraps across the seam).
+  function drawLive(p, offsets) {
+    const { k, tx, ty } = state.view;
+    const { origin, size, step } = state.liveDrawn;
+    const scale = k / size;
+    const [w, h] = [liveCanvas.width * step * scale, liveCanvas.height * step * scale];
+    for (const dx of [offsets[0] - k, ...offsets]) p.ctx.drawImage(liveCanvas, tx + dx + origin[1] * scale, ty + origin[0] * scale, w, h);
+  }
+
   function drawPane(p) {
     const ctx = p.ctx;
     ctx.save();
@@ -483,6 +583,7 @@ function render({ model, el: host }) {
     const offsets = copies(p);
     const image = p.kind === "input" ? state.source : state.preview || state.source;
     if (image) drawImageCopies(p, image, offsets);
+    if (p.kind === "result" && state.liveShown) drawLive(p, offsets);
     if (p.kind === "result" && state.split && state.source) {
       const at = state.splitAt * p.w;
       ctx.save();
@@ -556,7 +657,16 @@ function render({ model, el: host }) {
     frame = requestAnimationFrame(() => {
       frame = 0;
       if (!state.view) return;
+      const started = performance.now();
+      const rendered = state.liveMaps && live.render(state.liveMaps, state.liveFine ? Infinity : MOVING_PIXELS);
+      if (rendered) [state.liveShown, state.liveLast, state.liveDrawn] = [true, state.liveMaps, { ...state.liveBasis, step: rendered }];
+      state.liveMaps = null;
       for (const p of visible()) drawPane(p);
+      if (rendered) {
+        root.dataset.liveFrames = String(Number(root.dataset.liveFrames) + 1);
+        root.dataset.liveMs = (performance.now() - started).toFixed(1); // the frame's cost, for bench/bench_live.py
+        root.dataset.liveStep = String(rendered);
+      }
     });
   }
 
@@ -655,6 +765,10 @@ function render({ model, el: host }) {
 
   // Over a line the kernel keeps as it is, the canvas's tooltip gives the warnings naming it.
   function hover(p, x, y) {
+    if (p.kind === "result" && state.showHandles) {
+      const near = hit(p, x, y); // about to be dragged, perhaps: have the live basis ready
+      if (near) requestLive(near.index);
+    }
     const kept = state.showHandles ? status().kept || [] : [];
     const i = kept.find((j) => j < items().length && onCurve(p, j, x, y));
     const title = i === undefined ? "" : (status().warnings || []).filter((w) => w.includes(`handles[${i}]`)).join("\n");
@@ -723,6 +837,7 @@ function render({ model, el: host }) {
       kind: h.kind,
       moved: false,
     };
+    if (p.kind === "result") requestLive(found.index);
   }
 
   function onMove(p, e) {
@@ -745,6 +860,7 @@ function render({ model, el: host }) {
     if (d && d.type === "move") {
       d.moved = true;
       d.points = moved(d, at);
+      if (d.pane === "result") liveFrame(d);
       draw();
       return;
     }
@@ -821,12 +937,35 @@ function render({ model, el: host }) {
       command("arrow", { index: d.index, which: d.part === 1 ? "east" : "west", tip: pts[d.part] });
       return;
     }
-    if (h.kind === "point") h.target = pts[0];
-    else if (h.kind === "line") {
+    // an unchanged document after solves of the drag's way: the result of the handles as they are
+    if (!commit(draggedHandles(d)) && d.solved) command("refresh");
+  }
+
+  // The handles as the drag d on the result leaves them (an arrow tip: the scale and turn it gives).
+  function draggedHandles(d) {
+    const all = copy(items());
+    const h = all[d.index];
+    const pts = d.points;
+    if (h.kind === "point") {
+      h.target = pts[0];
+      if (d.part > 0) Object.assign(h, arrowTip(pts[0], pts[d.part], d.part === 1 ? "east" : "west") || {});
+    } else if (h.kind === "line") {
       h.rectify = false;
       h.targets = pts;
     } else h.targets = pts;
-    commit(all);
+    return all;
+  }
+
+  // When the mouse rests during a drag on the result, the kernel solves the handles as they
+  // are, one solve at a time (no edit: nothing to undo until the release); while it moves the
+  // cores are the browser's. The live frame then draws from the newest weights, so the region
+  // the handle reaches grows with the drag.
+  function solveDuringDrag(d) {
+    if (state.dragSolve && performance.now() - state.dragSolve < 5000) return; // one is on its way
+    if (status().state === "busy" || pendingCount > 0) return;
+    state.dragSolve = performance.now();
+    d.solved = true;
+    model.send({ op: "drag", handles: { ...doc(), handles: draggedHandles(d) } });
   }
 
   function cageClick(p, x, y, at, double) {
@@ -894,20 +1033,95 @@ function render({ model, el: host }) {
   }
 
   // --- keyboard -------------------------------------------------------------------------------
+  // JupyterLab and Notebook 7 take keys from one keydown listener on the document, bubbling in
+  // JupyterLab (after the editor's), capturing in Notebook 7 (before it): stopping a key here
+  // cannot keep it from Notebook 7. What keeps the notebook's command-mode keys ("d d" deletes
+  // a cell, "a" inserts one, "z" undoes cell operations) off the keys typed here, in both, is
+  // data-lm-suppress-shortcuts: Lumino's CommandRegistry walks up from the key's target to the
+  // element a binding's selector names and drops the binding if it meets the attribute first.
+  // The command-mode bindings name ".jp-Notebook.jp-mod-commandMode :focus", the focused
+  // element itself, so the target (the root, or a toolbar button) carries it, not only the
+  // root: a capturing listener on the window, which runs before the document's in either
+  // phase, puts it on both (it listens only while the editor has the focus). The keys that
+  // should reach the notebook (save, run the cell) go with the attribute off both for the event.
+  const SUPPRESS = "data-lm-suppress-shortcuts";
+  const passesToJupyter = (e) =>
+    (e.key === "Enter" && (e.shiftKey || e.ctrlKey || e.metaKey || e.altKey)) || // run the cell
+    ((e.ctrlKey || e.metaKey) && !e.altKey && !e.shiftKey && (e.key === "s" || e.key === "S")); // save
+
+  function onWindowKeydown(e) {
+    if (!root.isConnected) return listenToWindow(false);
+    if (!(e.target instanceof Element && root.contains(e.target))) return;
+    const holders = [root, e.target];
+    if (passesToJupyter(e)) {
+      for (const node of holders) node.removeAttribute(SUPPRESS);
+      setTimeout(() => holders.forEach((node) => node.setAttribute(SUPPRESS, "true"))); // after the document's listener
+    } else for (const node of holders) node.setAttribute(SUPPRESS, "true");
+  }
+  // A click outside the editor takes the keyboard from it: JupyterLab would leave the focus
+  // here after a click on the cell's prompt (the editor is inside the cell it makes active).
+  function onWindowPointerdown(e) {
+    if (!root.isConnected) return listenToWindow(false);
+    const focused = document.activeElement;
+    if (e.target instanceof Node && !root.contains(e.target) && root.contains(focused)) focused.blur();
+  }
+  function listenToWindow(on) {
+    const method = on ? "addEventListener" : "removeEventListener";
+    window[method]("keydown", onWindowKeydown, true);
+    window[method]("pointerdown", onWindowPointerdown, true);
+  }
+  root.addEventListener("focusin", () => listenToWindow(true));
+  root.addEventListener("focusout", (e) => {
+    if (e.relatedTarget instanceof Node && root.contains(e.relatedTarget)) return; // still in the editor
+    listenToWindow(false);
+    state.space = false; // its keyup goes elsewhere
+  });
+
+  // Esc with nothing to cancel gives the keyboard back to the notebook, as Esc in a cell's
+  // editor does: the focus goes to the cell, which puts the notebook in command mode.
+  function escape() {
+    const d = state.drag;
+    if (!d && !state.drawing && !state.help) return releaseFocus();
+    if (d) {
+      state.drag = null;
+      if (d.type === "pan") state.view = d.view; // back where the drag started
+      if (d.type === "move") state.liveShown = false; // the kernel's result again, not the dropped drag's live frame
+    }
+    cancelDrawing();
+    if (state.help) toggleHelp();
+    draw();
+  }
+  function releaseFocus() {
+    const home = root.closest(".jp-Cell") || (root.parentElement && root.parentElement.closest("[tabindex]"));
+    if (root.contains(document.activeElement)) document.activeElement.blur();
+    if (home) home.focus({ preventScroll: true });
+  }
+
+  // Tools and stages switched by a key are named in the status bar, as their buttons' titles
+  // name them.
+  function keyTool([name, label, key, what]) {
+    const stage = model.get("stage");
+    setTool(name);
+    const moved = model.get("stage") !== stage ? ` · stage ${STAGES[0][1]} (${STAGES[0][2]})` : "";
+    showLocal(`tool ${label} (${key}): ${what}${moved}`);
+  }
+  function keyStage([name, label, key, what]) {
+    setStage(name);
+    const others = STAGES.filter((s) => s[0] !== name).map(([, l, k]) => `${k} ${l.toLowerCase()}`);
+    showLocal(`stage ${label} (${key}): ${what} · ${others.join(", ")}`);
+  }
+
   root.addEventListener("keydown", (e) => {
+    if (passesToJupyter(e)) return; // on to JupyterLab's listener on the document
     const key = e.key;
     const mod = e.ctrlKey || e.metaKey;
     let used = true;
-    if (mod && (key === "z" || key === "Z")) command(e.shiftKey ? "redo" : "undo");
-    else if (mod && (key === "y" || key === "Y")) command("redo");
-    else if (mod) used = false;
+    if (mod && !e.altKey && (key === "z" || key === "Z")) command(e.shiftKey ? "redo" : "undo");
+    else if (mod && !e.altKey && (key === "y" || key === "Y")) command("redo");
+    else if (mod || e.altKey) used = false;
     else if (key === " ") state.space = true;
-    else if (key === "Escape") {
-      if (state.drag && state.drag.type === "move") state.drag = null;
-      cancelDrawing();
-      if (state.help) toggleHelp();
-      draw();
-    } else if (key === "Enter") closeCage();
+    else if (key === "Escape") escape();
+    else if (key === "Enter") closeCage();
     else if (key === "Delete" || key === "Backspace") deleteSelected();
     else if (key === "f" || key === "F") fit();
     else if (key === "?") toggleHelp();
@@ -918,13 +1132,13 @@ function render({ model, el: host }) {
     else {
       const tool = TOOLS.find(([, , k]) => k.toLowerCase() === key.toLowerCase());
       const stage = STAGES.find(([, , k]) => k.toLowerCase() === key.toLowerCase());
-      if (tool) setTool(tool[0]);
-      else if (stage) setStage(stage[0]);
+      if (tool) keyTool(tool);
+      else if (stage) keyStage(stage);
       else used = false;
     }
     if (used) {
       e.preventDefault();
-      e.stopPropagation(); // keep JupyterLab's own shortcuts out of the editor
+      e.stopPropagation();
     }
   });
   root.addEventListener("keyup", (e) => {
@@ -939,6 +1153,8 @@ function render({ model, el: host }) {
   function onImage(name) {
     images[name] = (async () => {
       state[name] = await decode(model.get(name), name === "folds" ? "image/png" : "image/jpeg");
+      if (name === "source" && state.source && live) live.setSource(state.source);
+      if (name === "preview") state.liveShown = false; // the kernel's result replaces the live frame
       if (name === "source" && !state.view) layout();
       draw();
     })();
@@ -951,9 +1167,12 @@ function render({ model, el: host }) {
     updateStatus();
     draw();
     const s = status();
+    if (s.state !== "busy") state.dragSolve = 0; // the next solve of a drag may go
+    if (s.state === "error") state.liveShown = false; // the last good result, not a frame of a drag that failed
     if (s.state !== "idle") return;
     await null; // an image changed by the same message has started decoding by now
     await Promise.all([images.preview, images.folds]);
+    if (!state.drag) state.liveShown = false; // the kernel's result, even when its image did not change
     await new Promise((resolve) => requestAnimationFrame(resolve));
     if (status() !== s) return; // superseded meanwhile
     root.dataset.generation = String(s.generation);
