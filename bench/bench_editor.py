@@ -107,7 +107,7 @@ def autosave_cost(edits: int = 200) -> None:
             if autosave:
                 for doc in docs:
                     start = time.perf_counter()
-                    editor._autosave(doc)
+                    editor.session._autosave(doc)
                     alone.append(time.perf_counter() - start)
                 size = editor.autosave_path.stat().st_size
             previews = []

@@ -194,13 +194,13 @@ def _warp_frames(args: argparse.Namespace) -> None:
     from .core.errors import ImageError
     from .core.frames import load_map, map_coordinates, warp_frames
     from .core.handles import load_handles
-    from .core.io import _check_format, read_panorama, write_image
+    from .core.io import check_format, read_panorama, write_image
 
     outputs = _frame_outputs(args)
     handles = load_handles(args.handles) if args.handles is not None else None
     saved = load_map(args.apply_map) if args.apply_map is not None else None
     first = read_panorama(args.input[0], args.fit)
-    _check_format(outputs[0], first[:0])  # the folder may not exist yet
+    check_format(outputs[0], first[:0])  # the folder may not exist yet
     start = time.perf_counter()
     if saved is not None:
         if args.width is not None and args.width != saved.shape[1]:

@@ -41,13 +41,13 @@ def _quality_measured_before_the_next_test(monkeypatch):
     init = Editor.__init__
 
     def recording(self, *args, **kwargs):
-        made.append(self)
         init(self, *args, **kwargs)
+        made.append(self)  # an editor whose making raised has no session to wait for
 
     monkeypatch.setattr(Editor, "__init__", recording)
     yield
     for ed in made:
-        ed._quality.wait(120)
+        ed.session.idle(120)
 
 
 @pytest.fixture
@@ -142,9 +142,9 @@ def test_undo_and_redo_every_edit_wherever_it_came_from(editor):
     first = editor.handles
     editor.set_state({"handles": doc(WINDOW_TOP)})  # drawn in the browser
     editor.handles = doc(WINDOW_TOP, {"kind": "point", "position": [90.0, 0.0]})  # set from Python
-    editor._on_message(editor, {"op": "rectify_all"}, [])  # a button
+    editor.session.command({"op": "rectify_all"})  # a button
     assert editor.history == {"undo": 3, "redo": 0}
-    editor._on_message(editor, {"op": "undo"}, [])
+    editor.session.command({"op": "undo"})
     assert editor.document.handles[0].rectify is False
     assert editor.undo() and editor.undo()
     assert editor.handles == first
@@ -163,10 +163,10 @@ def test_every_command_says_when_it_is_done_after_changing_the_handles(editor, m
     editor.observe(lambda change: events.append(("handles", len(change["new"]["handles"]))), names="handles")
     editor.set_state({"handles": doc(WINDOW_TOP)})
     events.clear()
-    editor._on_message(editor, {"op": "rectify_all"}, [])
+    editor.session.command({"op": "rectify_all"})
     assert events == [("handles", 1), ("sent", {"done": "rectify_all"})]  # in this order: comm messages keep it
     events.clear()
-    editor._on_message(editor, {"op": "reset", "index": 7}, [])  # refused: done all the same
+    editor.session.command({"op": "reset", "index": 7})  # refused: done all the same
     assert events == [("sent", {"done": "reset"})] and "handles[7]" in editor.status["error"]
 
 
@@ -180,7 +180,7 @@ def test_rectify_all_makes_the_drawn_line_straight(editor):
     editor.handles = doc(WINDOW_TOP)
     editor.wait()
     before = decoded(editor.preview)
-    editor._on_message(editor, {"op": "rectify_all"}, [])
+    editor.session.command({"op": "rectify_all"})
     status = editor.wait()
     assert status["state"] == "idle"
     line = editor.document.handles[0]
@@ -198,13 +198,13 @@ def test_rectify_all_makes_the_drawn_line_straight(editor):
 def test_rectify_selected_line_and_reset(editor):
     other = {"kind": "line", "start": [-83.0, 12.0], "end": [-45.5, 12.0], "rectify": False}
     editor.handles = doc(WINDOW_TOP, other)
-    editor._on_message(editor, {"op": "rectify_line", "index": 1}, [])
+    editor.session.command({"op": "rectify_line", "index": 1})
     line = editor.document.handles[1]
     assert line.targets is not None and not line.rectify
     assert editor.document.handles[0].targets is None  # the other line is left alone
-    editor._on_message(editor, {"op": "reset", "index": 1}, [])
+    editor.session.command({"op": "reset", "index": 1})
     assert editor.document.handles[1].targets is None and not editor.document.handles[1].rectify
-    editor._on_message(editor, {"op": "rectify_line", "index": 5}, [])
+    editor.session.command({"op": "rectify_line", "index": 5})
     assert "handles[5]" in editor.status["error"]
     assert len(editor.document) == 2
 
@@ -213,7 +213,7 @@ def test_dragging_an_arrow_tip_turns_and_zooms_the_point(editor):
     point = PointHandle(position=(40.0, -10.0), target=(45.0, -8.0))
     editor.handles = ow.Handles([point])
     tip = [60.0, 0.0]
-    editor._on_message(editor, {"op": "arrow", "index": 0, "which": "east", "tip": tip}, [])
+    editor.session.command({"op": "arrow", "index": 0, "which": "east", "tip": tip})
     moved = editor.document.handles[0]
     expected = point.with_arrow_tip(tip, "east")
     assert moved.scale == pytest.approx(expected.scale) and moved.rotation == pytest.approx(expected.rotation)
@@ -261,7 +261,7 @@ def test_a_newer_edit_supersedes_a_running_computation(editor, monkeypatch):
     assert status["state"] == "idle"
     assert len(seen) == 2  # the middle edit was never computed
     assert editor.preview_result.handles == editor.document  # what is shown is the newest edit
-    assert status["generation"] == editor._generation
+    assert status["generation"] == editor.session.generation
 
 
 def test_save_and_load_handles_files(editor, tmp_path):
@@ -272,15 +272,13 @@ def test_save_and_load_handles_files(editor, tmp_path):
     editor.load(path)
     assert editor.document.handles[0].start == (-4.0, 37.5)
     editor.handles_path = tmp_path / "button.json"
-    editor._on_message(editor, {"op": "save"}, [])
+    editor.session.command({"op": "save"})
     assert ow.load_handles(tmp_path / "button.json") == editor.document
     assert "saved 1 handles" in editor.status["message"]
-    editor._on_message(editor, {"op": "load", "name": "broken.json", "text": '{"handles": [{"kind": "point"}]}'}, [])
+    editor.session.command({"op": "load", "name": "broken.json", "text": '{"handles": [{"kind": "point"}]}'})
     assert editor.status["error"].startswith("broken.json: handles[0].position")
     assert len(editor.document) == 1
-    editor._on_message(
-        editor, {"op": "load", "name": "two.json", "text": json.dumps(doc(WINDOW_TOP, {"kind": "point", "position": [9, 9]}))}, []
-    )
+    editor.session.command({"op": "load", "name": "two.json", "text": json.dumps(doc(WINDOW_TOP, {"kind": "point", "position": [9, 9]}))})
     assert len(editor.document) == 2
 
 
@@ -322,7 +320,7 @@ def test_a_line_over_a_pole_kept_as_it_is_is_listed_in_the_status_and_not_as_a_c
 
 def test_full_size_on_demand(editor):
     editor.handles = doc({**WINDOW_TOP, "rectify": True})
-    editor._on_message(editor, {"op": "full"}, [])
+    editor.session.command({"op": "full"})
     status = editor.wait()
     assert status["width"] == 1024 and editor.result is editor.preview_result
 
@@ -375,7 +373,7 @@ def test_a_refused_command_while_computing_keeps_the_result_coming(editor, monke
     monkeypatch.setattr(pipeline, "warp", slow)
     editor.handles = doc({**WINDOW_TOP, "rectify": True})
     assert started.wait(10)
-    editor._on_message(editor, {"op": "rectify_line", "index": 3}, [])
+    editor.session.command({"op": "rectify_line", "index": 3})
     release.set()
     status = editor.wait()
     assert status["state"] == "idle" and editor.preview_result.handles == editor.document
@@ -411,7 +409,7 @@ def test_every_edit_is_autosaved_next_to_the_image_and_a_new_editor_restores_it(
     assert on_disk(ed.autosave_path) == ed.handles
     ed.handles = doc(WINDOW_TOP, POINT)  # from Python
     assert on_disk(ed.autosave_path) == ed.handles
-    ed._on_message(ed, {"op": "rectify_all"}, [])  # a button
+    ed.session.command({"op": "rectify_all"})  # a button
     rectified = ed.handles
     assert on_disk(ed.autosave_path) == rectified
     ed.undo()
@@ -543,7 +541,7 @@ def test_an_autosave_that_cannot_be_written_is_shown_and_the_edit_stands(tmp_pat
     ed = Editor(room, autosave=folder / "room.json")
     folder.rmdir()  # the folder went away (an unmounted disk, say)
     ed.handles = doc(POINT)
-    assert ed.handles == normal(doc(POINT)) and len(ed._undo) == 1
+    assert ed.handles == normal(doc(POINT)) and ed.history["undo"] == 1
     notice = ed.wait()["notice"]
     assert notice.startswith(f"could not autosave to {folder / 'room.json'} (No such file or directory)")
     assert "Save or Download them" in notice
@@ -573,7 +571,7 @@ def _raise(exc):
             "FloatingPointError: overflow encountered in the blend",
         ),
         (["omniwidget.core.pipeline.remap"], RuntimeError(), "(RuntimeError)"),
-        (["omniwidget.widget.editor._jpeg"], ow.ImageError("could not encode the image for display"), "ImageError: could not encode"),
+        (["omniwidget.session._jpeg"], ow.ImageError("could not encode the image for display"), "ImageError: could not encode"),
     ],
     ids=["constraints", "mesh", "solver", "blend", "resampling", "display"],
 )
@@ -603,7 +601,7 @@ def test_an_error_anywhere_in_the_computation_is_shown_and_the_next_edit_recover
 
 @pytest.mark.parametrize("where", ["image", "outputs"])
 def test_a_result_that_is_not_finite_is_refused_like_an_error(monkeypatch, where):
-    from omniwidget.widget import editor as module
+    from omniwidget import session as module
 
     image = ow.sample_image().astype(np.float32) / 255
     ed = Editor(image, doc(WINDOW_TOP, POINT), autosave=False)
@@ -728,7 +726,7 @@ def test_save_image_keeps_a_jpegs_format_and_its_pixels_are_the_encoders_own(roo
 
 
 def test_save_image_falls_back_to_png_when_the_inputs_format_cannot_hold_the_result(tmp_path, monkeypatch):
-    from omniwidget.widget.editor import _result_location
+    from omniwidget.session import _result_location
 
     rgba = np.zeros((4, 8, 4), np.uint8)
     assert _result_location(tmp_path / "room.jpg", rgba) == tmp_path / "room-rectified.png"  # alpha in a JPEG
@@ -776,8 +774,8 @@ def test_an_unwritable_folder_is_shown_like_the_editors_errors_and_keeps_the_han
     assert ed.status["error"].startswith("could not save the image: ") and "the handles are kept" in ed.status["error"]
     assert str(folder) in ed.status["error"] and ed.handles == kept
     # the button: in the worker, shown the same way
-    ed._report_error("")
-    ed._on_message(ed, {"op": "save_image"}, [])
+    ed.session._report_error("")
+    ed.session.command({"op": "save_image"})
     status = ed.wait()
     assert status["error"].startswith("could not save the image: ") and ed.handles == kept
     assert status["state"] == "idle" and status["width"] == ed.image.shape[1]  # the full-size result is shown all the same
@@ -790,7 +788,7 @@ def test_save_image_button_works_in_the_worker_and_sends_the_file_for_download(r
     ed = Editor(room)
     monkeypatch.setattr(ed, "send", lambda content, buffers=None: sent.append((content, buffers)))
     ed.handles = doc({**WINDOW_TOP, "rectify": True})
-    ed._on_message(ed, {"op": "save_image"}, [])
+    ed.session.command({"op": "save_image"})
     assert ({"done": "save_image"}, None) in sent  # the kernel answers at once: the widget never waits
     status = ed.wait()
     path = room.with_name("room-rectified.jpg")

@@ -382,7 +382,7 @@ def test_a_kernel_error_mid_edit_and_a_kernel_restart_lose_no_handles(jupyter_se
         before = bh.wait_until(lambda: kernel_handles(2), timeout=20, description="the point in the kernel")
         assert before["handles"][0]["rectify"] is True, before  # the rectification was kept
         # the result of this very edit (an earlier edit's result may show first, between two computations)
-        generation = wait_idle(nb, kernel_json(client, "ed._generation") - 1, "the result with the line and the point")
+        generation = wait_idle(nb, kernel_json(client, "ed.session.generation") - 1, "the result with the line and the point")
         assert ow.load_handles(autosave).to_dict() == before
 
         # 2. the solver raises during the next edit, a third handle placed in the browser
@@ -512,7 +512,7 @@ def test_an_arrow_tip_dragged_to_scale_2_magnifies_the_result_2x_at_the_point(ju
             timeout=20,
             description="the arrow's drag in the kernel",
         )
-        wait_idle(nb, kernel_json(client, "ed._generation") - 1, "the result with the point zoomed")
+        wait_idle(nb, kernel_json(client, "ed.session.generation") - 1, "the result with the point zoomed")
         bh.run_in_kernel(client, MAGNIFICATION)
         figures = kernel_json(
             client,
@@ -546,7 +546,7 @@ def test_a_large_cage_dragged_carries_its_inside_rigidly(jupyter_server, browser
         )
         moved = coords.angular_distance(cage["vertices"], cage["targets"])
         assert 3.0 < moved.min() and moved.max() < 12.0, moved  # a few degrees, every vertex
-        wait_idle(nb, kernel_json(client, "ed._generation") - 1, "the result with the cage moved")
+        wait_idle(nb, kernel_json(client, "ed.session.generation") - 1, "the result with the cage moved")
         bh.run_in_kernel(
             client,
             "import numpy as np\nfrom omniwidget.core import coords, quality\n"

@@ -128,27 +128,31 @@ def test_a_handle_without_a_control_is_refused(image):
         live_basis(result, 7)
 
 
-def test_the_editor_sends_the_basis_and_solves_a_drag_without_an_edit():
-    ed = ow.Editor(ow.sample_path(), _scene(5.0), preview_width=WIDTH, autosave=False, quality=False)
-    ed.wait()
+def test_the_session_sends_the_basis_and_solves_a_drag_without_an_edit():
+    from omniwidget.session import EditingSession
+
     sent = []
-    ed.send = lambda content, buffers=None: sent.append((content, buffers))
-    ed._send_live_basis(2)
-    (header, (buffer,)), = sent
+    session = EditingSession(
+        ow.sample_path(), _scene(5.0), preview_width=WIDTH, autosave=False, quality=False, on_message=lambda c, b: sent.append((c, b))
+    )
+    session.start()
+    session.wait()
+    session.live_basis_message(2)
+    ((header, (buffer,)),) = sent
     assert header["op"] == "live" and header["index"] == 2 and header["controls"] == 3 and header["carry"] is True
-    assert header["generation"] == ed.status["generation"] and header["size"] == WIDTH
+    assert header["generation"] == session.status["generation"] and header["size"] == WIDTH
     assert len(buffer) == 2 * header["height"] * header["width"] * 4 * 2  # two layers of RGBA half floats
-    ed._send_live_basis(9)  # a handle that is not there: nothing
+    session.live_basis_message(9)  # a handle that is not there: nothing
     assert len(sent) == 1
 
     # a drag's solve is a preview, not an edit: no undo step, the document unchanged
-    before, history = ed.handles, dict(ed.history)
-    moved = ed.document.to_dict()
+    before, history = session.handles, dict(session.history)
+    moved = session.document.to_dict()
     moved["handles"][0]["target"] = [26.0, 8.0]
-    generation = ed.status["generation"]
-    ed._solve_drag(moved)
-    ed.wait()
-    assert ed.status["generation"] > generation and ed.status["state"] == "idle"
-    assert ed.handles == before and ed.history == history
-    assert ed.preview_result.handles.handles[0].final == (26.0, 8.0)
-    assert ed.outputs[0][0] == pytest.approx([26.0, 8.0])
+    generation = session.status["generation"]
+    session.command({"op": "drag", "handles": moved})
+    session.wait()
+    assert session.status["generation"] > generation and session.status["state"] == "idle"
+    assert session.handles == before and session.history == history
+    assert session.preview_result.handles.handles[0].final == (26.0, 8.0)
+    assert session.outputs[0][0] == pytest.approx([26.0, 8.0])

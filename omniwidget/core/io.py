@@ -29,6 +29,7 @@ __all__ = [
     "FITS",
     "SUPPORTED_DTYPES",
     "atomic_write_bytes",
+    "check_format",
     "check_panorama",
     "check_writable",
     "read_image",
@@ -570,10 +571,10 @@ def check_writable(path: str | os.PathLike[str], image: NDArray) -> None:
         raise ImageError(f"{path}: is a folder; name an image file")
     if not path.parent.is_dir():
         raise ImageError(f"{path}: the folder {path.parent} does not exist")
-    _check_format(path, image)
+    check_format(path, image)
 
 
-def _check_format(path: Path, image: NDArray) -> None:
+def check_format(path: Path, image: NDArray) -> None:
     """The part of :func:`check_writable` about the suffix and the image's kind."""
     suffix = path.suffix.lower()
     if suffix == ".npy":
