@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -12,22 +13,32 @@ from omniwidget.core import coords
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 
+# hypothesis: the same draws on every run and no example database, so a failure is reproduced by running the
+# test again (tests/test_robustness.py, test_handles.py, test_cli.py). OMNIWIDGET_HYPOTHESIS=hunt draws new
+# examples each run, for a longer hunt (with OMNIWIDGET_FUZZ=N); it writes no database either.
+try:
+    from hypothesis import settings
+except ImportError:  # the test extra brings it
+    pass
+else:
+    settings.register_profile("omniwidget", derandomize=True, database=None, print_blob=True)
+    settings.register_profile("hunt", derandomize=False, database=None, print_blob=True)
+    settings.load_profile(os.environ.get("OMNIWIDGET_HYPOTHESIS", "omniwidget"))
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _no_autosave_by_default():
-    """Editors made by tests (and the kernels they start) autosave only where a test asks them to.
+    """Editors made by tests (and the kernels and Jupyter servers they start) autosave only where a test asks them to.
 
     Without this, ``Editor(ow.sample_path())`` would write its autosave into the working
-    folder and the next test's editor would start from it.
+    folder and the next test's editor would start from it. The variable is set through a
+    ``MonkeyPatch`` and restored when the session ends; a test that wants the default
+    undoes it with its own ``monkeypatch.delenv`` (``tests/test_notebooks.py`` runs the
+    notebooks with autosave on, each in a folder of its own, and checks the file).
     """
-    import os
-
-    old = os.environ.get("OMNIWIDGET_AUTOSAVE")
-    os.environ["OMNIWIDGET_AUTOSAVE"] = "0"
-    yield
-    if old is None:
-        os.environ.pop("OMNIWIDGET_AUTOSAVE", None)
-    else:
-        os.environ["OMNIWIDGET_AUTOSAVE"] = old
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("OMNIWIDGET_AUTOSAVE", "0")
+        yield
 
 
 @pytest.fixture

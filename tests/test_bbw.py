@@ -19,8 +19,11 @@ from scipy.spatial import ConvexHull
 from omniwidget.core import bbw as bbw_module
 from omniwidget.core.bbw import bbw, bilaplacian, cotangent_laplacian, mass_matrix, normalize_rows
 
-# libigl stops after 100 iterations; it converges well before on these meshes
-IGL_TOL = 1e-3
+#: Our weights against ``igl.bbw`` (libigl stops after 100 iterations; it converges well before on these
+#: meshes). Measured 6.3e-14 (icosphere3, lines) to 1.3e-10 (hull700, cage: the worst conditioned), 1.1e-12
+#: on the three-level icosphere4; the bound is 8x the worst. The README's "to 1e-10" is the pipeline's
+#: mesh (tests/test_blend.py, 6e-15 there); a solver bug shows at 1e-4 or more.
+IGL_TOL = 1e-9
 
 
 # --- meshes and handle layouts ---------------------------------------------------------------
@@ -233,7 +236,7 @@ def test_bbw_matches_libigl(mesh, layout):
     w_igl = igl_bbw(v, f, b, bc)
     diff = np.abs(w - w_igl).max()
     print(f"{mesh}/{layout}: max |bbw - igl.bbw| = {diff:.2e}")
-    assert diff < IGL_TOL
+    assert diff < IGL_TOL, f"max |bbw - igl.bbw| = {diff:.2e}, bound {IGL_TOL:g}"
 
 
 def test_bbw_matches_libigl_through_three_levels():
@@ -245,7 +248,7 @@ def test_bbw_matches_libigl_through_three_levels():
     b, bc = point_layout(v, 10, seed=11)
     diff = np.abs(bbw(v, f, b, bc) - igl_bbw(v, f, b, bc)).max()
     print(f"icosphere4/points: max |bbw - igl.bbw| = {diff:.2e}")
-    assert diff < IGL_TOL
+    assert diff < IGL_TOL, f"max |bbw - igl.bbw| = {diff:.2e}, bound {IGL_TOL:g}"
 
 
 def test_the_bounds_are_really_enforced():

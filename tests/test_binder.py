@@ -1,10 +1,12 @@
 """binder/ installs what the notebooks need, in the ranges pyproject.toml allows."""
 
+import sys
 from pathlib import Path
 
 import pytest
 
-tomllib = pytest.importorskip("tomllib")
+# Python 3.11 has tomllib; on 3.10, the floor pyproject.toml states, the same parser as the tomli package
+tomllib = pytest.importorskip("tomllib") if sys.version_info >= (3, 11) else pytest.importorskip("tomli")
 requirements = pytest.importorskip("packaging.requirements")
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,7 +8,7 @@ import pytest
 from omniwidget.core import bbw as bbw_module
 from omniwidget.core import coords
 from omniwidget.core.bbw import normalize_rows
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.core.handles import SUGGESTED_ANCHOR, CageHandle, Handles, LineHandle, Options, PointHandle
 from omniwidget.core.mesh import icosphere
 from omniwidget.core.pipeline import FOLD_WARNING_AREA, BlendWarning, ease_background, warp
 from omniwidget.core.quality import cage_motion, coverage, straightness
@@ -16,6 +16,10 @@ from omniwidget.core.scenes import mark_lines, synthetic_room
 
 W = 2048
 
+
+#: README ("Measured"): a fixed cage's inside moves by less than 1e-12 px. Measured 3.6e-13 px at 2048 on
+#: both rooms below (rounding in the inverse map); a cage that leaked would move it by pixels.
+FIXED_CAGE_PX = 1e-12
 
 #: A fixed cage and a moved point, placed in the rooms where no line passes.
 CAGE = ((-150.0, -20.0), (-120.0, -20.0), (-120.0, 10.0), (-150.0, 10.0))
@@ -67,7 +71,8 @@ def test_rooms_with_lines_a_fixed_cage_and_a_moved_point(seed, n_lines):
     # lines whose ends are 1° apart meet; below the warning's threshold, and 0 before lines were cut (issue 17)
     assert result.folds.area <= (0 if seed == 1 else 1e-6) and not result.warnings
     assert coverage(inverse) >= 0.99
-    assert cage_motion(inverse, CAGE) < 0.5
+    moved = cage_motion(inverse, CAGE)
+    assert moved < FIXED_CAGE_PX, f"the fixed cage's inside moved {moved:.2e} px (measured 3.6e-13)"
     point = [c for c in range(len(result.controls)) if result.controls[c].handle == len(lines) + 1]
     landed = result.forward_points([POINT.position], point[0])
     assert coords.angular_distance(landed, POINT.target).max() * W / 360 < 0.25
@@ -75,17 +80,26 @@ def test_rooms_with_lines_a_fixed_cage_and_a_moved_point(seed, n_lines):
     _check_lines(result)
 
 
+@pytest.mark.parametrize("anchor", [None, SUGGESTED_ANCHOR], ids=["paper", "default"])
 @pytest.mark.parametrize(("seed", "n_lines"), [(2, 9), (3, 12)])
-def test_rooms_with_lines_only_and_their_fold_overs_reported(seed, n_lines):
-    """Lines rectified each by its own map: straight, the sphere shown; where the maps fold (the paper's
-    method does on such rooms, see issue 9), a warning names the handles and the area."""
+def test_rooms_with_lines_only_and_their_fold_overs_reported(seed, n_lines, anchor):
+    """Lines rectified each by its own map: straight, the sphere shown; where the maps fold, a warning names
+    the handles and the area, and none where they fold less than ``FOLD_WARNING_AREA``.
+
+    The paper's method (``anchor: null``) folds on such rooms (issue 9): 1.8% (room 2) and 0.73% (room 3),
+    so the warning path is exercised whatever the default does. The default (the still background) folds
+    1.1e-6 (room 2, below the warning's 1e-5) and 3.2e-5 (room 3, where two cut lines' ends meet).
+    """
     scene, lines = _room_scene(seed, n_lines)
+    doc = Handles(_lines_doc(lines).handles, Options(rectify="each", anchor=anchor))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = warp(scene.image, _lines_doc(lines))
+        result = warp(scene.image, doc)
     assert np.all(np.isfinite(result.image)) and coverage(result.inverse_map(np.float64)) >= 0.99
+    if anchor is None:  # the precondition: the paper's maps do fold here, far above the warning's level
+        assert result.folds.area >= 100 * FOLD_WARNING_AREA, f"the paper's method should fold here: {result.folds.area:.2e}"
     fold_warnings = [str(w.message) for w in caught if issubclass(w.category, BlendWarning) and "folds over" in str(w.message)]
-    assert len(fold_warnings) == (result.folds.area >= FOLD_WARNING_AREA)
+    assert len(fold_warnings) == (result.folds.area >= FOLD_WARNING_AREA), (result.folds.area, fold_warnings)
     for message in fold_warnings:
         assert f"{100 * result.folds.area:.3g}% of the sphere" in message and "handles[" in message
     _check_weights(result)
@@ -95,11 +109,14 @@ def test_rooms_with_lines_only_and_their_fold_overs_reported(seed, n_lines):
 def test_weights_match_libigl_on_the_pipelines_mesh():
     from omniwidget.core._igl import igl_bbw
 
+    pytest.importorskip("igl")
     scene, lines = _room_scene(1, 6, KEEP_CLEAR)
     result = warp(scene.image, _lines_doc(lines, CageHandle(CAGE), POINT))
     reference = normalize_rows(igl_bbw(result.vertices, result.faces, result.constrained, result.prescribed))
-    assert np.abs(normalize_rows(result.raw_weights) - reference).max() < 1e-3
-    assert np.abs(result.weights - ease_background(reference)).max() < 1e-3  # what the blend uses (a still background)
+    # README: "the weights agree to 1e-10"; measured 6.4e-15 on this mesh (both before and after the ease)
+    raw = np.abs(normalize_rows(result.raw_weights) - reference).max()
+    used = np.abs(result.weights - ease_background(reference)).max()  # what the blend uses (a still background)
+    assert raw < 1e-10 and used < 1e-10, (raw, used)
 
 
 def test_a_point_moved_into_a_fixed_cage_folds_and_says_so():

@@ -24,6 +24,17 @@ from omniwidget.core.scenes import family_scene
 W = 2048
 T = np.linspace(0.0, 1.0, 50)
 
+#: The issue's figures are 0.25 px, 1% and 0.1° for points and 0.5 px for cages and lines; the README states
+#: what is measured, and these bounds hold that (at 2048 on the report half's scenes below):
+#: points are exact: centre within 5e-13 px, zoom 5e-15, turn 1.2e-13° measured; bounds 20x, 20x, 9x.
+POINT_EXACT = {"centre_px": 1e-11, "zoom": 1e-13, "rotation": 1e-12}
+#: cages carry or hold their inside exactly on these scenes: 2.1e-13 to 9.4e-13 px measured; bound 10x.
+#: (The report half's worst at 1024, in the README, is 0.08 px, on a scene not run here.)
+CAGE_EXACT_PX = 1e-11
+#: lines: pieces are cut until within 0.02° (constraints.LINE_TOLERANCE: 0.11 px at 2048); measured up to
+#: 0.106 px at 2048 (0.05 px at 1024, the README's figure); bound 0.15 px, 1.4x.
+LINE_PX = 0.15
+
 
 def _warp(image, handles):
     with warnings.catch_warnings():
@@ -45,7 +56,8 @@ def test_point_handles_show_their_target_zoom_and_turn(family, seed):
         f = point_fidelity(result, i)
         h = doc.handles[i]
         print(f"\n{family} {seed} handles[{i}] scale {h.scale:.2f} rotation {h.rotation:.1f}: {f}")
-        assert f.centre_px <= 0.25 and f.zoom_error <= 0.01 and f.rotation_error <= 0.1
+        assert f.centre_px <= POINT_EXACT["centre_px"], f
+        assert f.zoom_error <= POINT_EXACT["zoom"] and f.rotation_error <= POINT_EXACT["rotation"], f
 
 
 def test_a_zoomed_point_alone_magnifies_by_its_scale():
@@ -54,7 +66,8 @@ def test_a_zoomed_point_alone_magnifies_by_its_scale():
     for scale, rotation in ((2.0, 0.0), (1.4, 20.0), (0.7, -15.0)):
         doc = Handles((PointHandle((30.0, -10.0), target=(33.0, -8.0), scale=scale, rotation=rotation),))
         f = point_fidelity(_warp(image, doc), 0)
-        assert f.centre_px <= 0.25 and f.zoom_error <= 0.01 and f.rotation_error <= 0.1, (scale, f)
+        assert f.centre_px <= POINT_EXACT["centre_px"] and f.zoom_error <= POINT_EXACT["zoom"], (scale, f)
+        assert f.rotation_error <= POINT_EXACT["rotation"], (scale, f)
 
 
 @pytest.mark.parametrize(("family", "seed"), [("cage_small", 1), ("cage_small", 3), ("cage_large", 1), ("cage_large", 3), ("cage_large", 5)])
@@ -65,14 +78,15 @@ def test_a_moved_cage_carries_its_inside(family, seed):
     (i,), (rotation,) = truth["cage_handles"], truth["rotations"]
     error = cage_fidelity(result, i, rotation)
     print(f"\n{family} {seed}: {truth['across'][0]:.0f}° across, convex {truth['convex'][0]}: {error:.3g} px")
-    assert error <= 0.5
+    assert error <= CAGE_EXACT_PX, f"{error:.2e} px"  # measured 2.1e-13 to 9.4e-13 px
 
 
 @pytest.mark.parametrize("seed", [1, 3, 5])
 def test_a_fixed_cage_holds_its_inside_against_lines_that_pull(seed):
     scene, doc, truth = family_scene("cage_fixed", seed, W)
     result = _warp(scene.image, doc)
-    assert cage_fidelity(result, truth["cage_handles"][0]) <= 0.5
+    error = cage_fidelity(result, truth["cage_handles"][0])
+    assert error <= CAGE_EXACT_PX, f"{error:.2e} px"  # measured 2.6e-13 to 3.9e-13 px
 
 
 def test_the_issues_large_cage_moves_its_centre_with_it():
@@ -82,8 +96,8 @@ def test_the_issues_large_cage_moves_its_centre_with_it():
     image = family_scene("cage_large", 1, 1024)[0].image
     result = _warp(image, Handles((cage, LineHandle((-60.0, 30.0), (-20.0, 35.0)))))
     shown = result.inverse_points(np.array([[139.0, 1.5]]))[0]
-    assert coords.angular_distance(shown, (135.0, 1.5)) < 1e-9
-    assert cage_fidelity(result, 0) <= 0.5
+    assert coords.angular_distance(shown, (135.0, 1.5)) < 1e-9  # measured 6.3e-14°
+    assert cage_fidelity(result, 0) <= CAGE_EXACT_PX  # measured 2.6e-13 px
 
 
 def test_the_pane_shows_a_cage_with_weight_1_inside():
@@ -107,7 +121,7 @@ def test_lines_of_any_length_come_out_straight(family, seed):
     for line, blended in zip(truth["lines"], figures, strict=True):
         paper = straightness(LineHandle(line.start, line.end).moebius()(coords.geodesic(line.start, line.end, T)), W, fit="best")
         print(f"\n{family} {seed}: a {line.length:.0f}° line: {blended:.3f} px (eq. 4's own map: {paper:.3f} px)")
-        assert blended <= 0.5
+        assert blended <= LINE_PX, f"{blended:.3f} px"
         assert blended <= paper + 0.05
 
 
@@ -160,3 +174,34 @@ def test_rooms_of_long_lines_are_far_calmer_than_the_papers(seed):
     assert ours.fold_over <= theirs.fold_over
     assert ours.distortion_mean < theirs.distortion_mean / 3 and ours.distortion_p99 < theirs.distortion_p99 / 2
     assert ours.displacement < theirs.displacement / 10 and ours.straightness <= 0.5
+
+
+#: The README's "What you mark is what you get" table, default mode: the worst over the report half's 20
+#: scenes per family at 1024 of (fold-over share, distortion mean, distortion p99, mean displacement °).
+#: The issue's figures (0, 0.05, 0.5, 0.5°; long lines 0, 0.1, 1.0, 1°) are not met on every scene; these are.
+REPORT_WORST = {
+    "short": (1e-5, 0.043, 0.65, 0.10),  # one room folds a few pixels (3.8e-6 of the sphere), below the warning
+    "long": (0.011, 3.512, 10.35, 2.80),
+    "cage_small": (0.0, 0.021, 0.60, 0.15),
+    "cage_large": (0.0, 0.060, 0.86, 0.78),
+    "cage_fixed": (0.0, 0.019, 0.55, 0.05),
+    "points": (0.0, 0.034, 0.76, 0.08),
+    "mixed": (0.0, 0.052, 0.86, 0.23),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("family", sorted(REPORT_WORST))
+def test_the_backgrounds_figures_on_report_scenes_are_within_the_readmes_worst(family):
+    """Part 4 (the background's distortion), held out: seeds 1, 3, 5 and 7 of the report half at 1024 (as
+    ``python bench/bench_default.py --width 1024``), each within the README's worst for its family plus 10%
+    (rounding: the table shows two or three digits). Measured e.g. short 3: mean 0.043, moved 0.105°; long 7:
+    folds 0.52%, mean 3.51; cage_large 7: p99 0.79, moved 0.51°; points 7: p99 0.71. 2-5 s a scene."""
+    fold, mean, p99, moved = REPORT_WORST[family]
+    for seed in (1, 3, 5, 7):
+        scene, doc, _ = family_scene(family, seed, 1024)
+        q = _warp(scene.image, doc).quality
+        print(f"\n{family} {seed}: {q.line()}")
+        assert q.fold_over <= 1.1 * fold and q.coverage >= 0.995, (seed, q.line())
+        assert q.distortion_mean <= 1.1 * mean and q.distortion_p99 <= 1.1 * p99, (seed, q.line())
+        assert q.displacement <= 1.1 * moved, (seed, q.line())

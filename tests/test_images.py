@@ -568,12 +568,16 @@ BIG = textwrap.dedent(
 
     folder, handles = sys.argv[1], json.loads(sys.argv[2])
     h, w = 6000, 12000
+    # smooth waves of 600-1200 px (75-150 px at 1500 wide): they survive JPEG and scaling, so the comparison
+    # below sees the map, not aliasing (a grid of 1-px lines left 13% of the motion as noise); made in bands of
+    # rows so that no float copy of the whole image raises the peak
     image = np.empty((h, w, 3), np.uint8)
-    image[..., 0] = (np.arange(w) * 255 // (w - 1))[None, :]
-    image[..., 1] = (np.arange(h) * 255 // (h - 1))[:, None]
-    image[..., 2] = 0
-    image[::250] = 255
-    image[:, ::250] = 255
+    x = np.arange(w, dtype=np.float32)[None]
+    for r0 in range(0, h, 500):
+        y = np.arange(r0, r0 + 500, dtype=np.float32)[:, None]
+        image[r0:r0 + 500, :, 0] = np.round(127.5 + 127 * np.cos(2 * np.pi * x / 800) * np.cos(2 * np.pi * y / 600))
+        image[r0:r0 + 500, :, 1] = np.round(127.5 + 127 * np.sin(2 * np.pi * x / 1200) * np.sin(2 * np.pi * y / 1000))
+        image[r0:r0 + 500, :, 2] = np.round(127.5 + 127 * np.cos(2 * np.pi * (x + y) / 900))
     write_image(f"{folder}/in.jpg", image)
     small_in = cv2.resize(image, (1500, 750), interpolation=cv2.INTER_AREA)
     del image
@@ -613,6 +617,7 @@ def test_a_12000_by_6000_panorama_warps_within_4_gb(tmp_path):
     assert report["code"] == 0 and report["compiled"]
     assert report["shape"] == [6000, 12000, 3] and report["dtype"] == "uint8"
     assert report["peak_kib"] <= 4 * 1024 * 1024, f"peak {report['peak_kib'] / 1024**2:.2f} GiB"
-    # the big warp, scaled down, is the warp of the scaled-down input (the map is in degrees)
-    assert report["off"] < 0.25 * report["moved"], report
+    # the big warp, scaled down, is the warp of the scaled-down input (the map is in degrees): measured a mean
+    # difference of 0.46 levels against 62 levels of motion (0.75%; JPEG alone accounts for 0.22); bound 2%
+    assert report["off"] < 0.02 * report["moved"] and report["off"] < 1.0, report
     print(f"12000 x 6000 through the command line: peak {report['peak_kib'] / 1024**2:.2f} GiB, {report}")

@@ -1,10 +1,14 @@
 """The teaching notebooks run top to bottom, headless, without error (nbclient, a real kernel).
 
-Each numbered notebook is executed once per session; the tests then read what it printed:
-notebook 04's comparison tables are checked here as numbers (their ``application/json``
-output), so what a lecturer shows is what was measured.
+Each numbered notebook is executed once per session, in a folder of its own, with the
+default autosave (the session turns it off for everything else, ``conftest.py``); the tests
+then read what it printed: notebook 04's comparison tables are checked here as numbers (their
+``application/json`` output) against what the method must give, so what a lecturer shows is
+what was measured, and right. How long they take is reported (``pytest -s``, and
+``python bench/bench_notebooks.py``), not asserted: a shared machine's wall clock is no test.
 """
 
+import re
 import time
 from pathlib import Path
 
@@ -14,24 +18,33 @@ nbformat = pytest.importorskip("nbformat")
 nbclient = pytest.importorskip("nbclient")
 
 NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("[0-9][0-9]_*.ipynb"))
-#: All of them together must run in under 5 minutes (issue 6); each gets this much.
+#: A cell that takes longer than this is stuck (each notebook runs in 2-6 s; bench/bench_notebooks.py).
 TIMEOUT = 240
-#: Seconds each notebook took, for the total below.
+#: Seconds each notebook took (printed; not asserted).
 SECONDS: dict[str, float] = {}
+#: The folder each notebook ran in (its working folder: files it writes, such as the editor's autosave).
+FOLDERS: dict[str, Path] = {}
 
 
 @pytest.fixture(scope="module")
 def executed(tmp_path_factory):
-    """``executed(path)``: the notebook run top to bottom (once per session), with its outputs."""
+    """``executed(path)``: the notebook run top to bottom (once per session), with its outputs.
+
+    The kernel starts with the environment a user has: ``OMNIWIDGET_AUTOSAVE`` unset (the
+    session's ``0`` is lifted for the kernel's start only, and restored), so the editor in
+    notebook 00 autosaves by default, into the notebook's own folder.
+    """
     cache = {}
 
     def run(path: Path):
         if path not in cache:
             nb = nbformat.read(path, as_version=4)
             assert all(not cell.get("outputs") for cell in nb.cells if cell.cell_type == "code"), f"{path.name} is committed with outputs"
-            folder = tmp_path_factory.mktemp(path.stem)
+            folder = FOLDERS[path.name] = tmp_path_factory.mktemp(path.stem)
             start = time.perf_counter()
-            nbclient.NotebookClient(nb, timeout=TIMEOUT, kernel_name="python3", resources={"metadata": {"path": str(folder)}}).execute()
+            with pytest.MonkeyPatch.context() as patch:
+                patch.delenv("OMNIWIDGET_AUTOSAVE", raising=False)
+                nbclient.NotebookClient(nb, timeout=TIMEOUT, kernel_name="python3", resources={"metadata": {"path": str(folder)}}).execute()
             SECONDS[path.name] = time.perf_counter() - start
             print(f"{path.name}: {SECONDS[path.name]:.1f} s")
             cache[path] = nb
@@ -51,10 +64,20 @@ def test_there_are_notebooks():
     assert [p.name[:2] for p in NOTEBOOKS] == [f"{i:02d}" for i in range(7)]
 
 
-def test_all_notebooks_together_take_under_five_minutes(executed):
-    for path in NOTEBOOKS:
-        executed(path)
-    assert sum(SECONDS.values()) < 300, SECONDS
+def test_the_quickstart_editor_autosaves_by_default_into_the_notebooks_folder(executed):
+    """The default a user gets: ``ow.Editor(ow.sample_path())`` autosaves its edits (the bundled sample's folder
+    is the package's, so the autosave goes to the notebook's folder, ``hotel_room-<digest>.omniwidget-autosave.json``)."""
+    import omniwidget as ow
+    from omniwidget.widget.editor import AUTOSAVE_SUFFIX
+
+    path = next(p for p in NOTEBOOKS if p.name.startswith("00_"))
+    executed(path)
+    saved = sorted(FOLDERS[path.name].glob(f"hotel_room-*{AUTOSAVE_SUFFIX}"))
+    assert len(saved) == 1, sorted(p.name for p in FOLDERS[path.name].iterdir())
+    from omniwidget.cli import DEMO_HANDLES
+
+    # the notebook sets the demo's handles, undoes and redoes: the autosave holds them
+    assert ow.load_handles(saved[0]).to_dict() == ow.Handles.from_dict(DEMO_HANDLES).to_dict()
 
 
 def _table(nb, tag: str) -> dict:
@@ -81,12 +104,51 @@ def test_notebook_04_table_bbw_is_smooth_piecewise_tears_gaussian_bends(executed
     assert close["piecewise_constant"]["tear"] > 10, close["piecewise_constant"]
 
 
-def test_notebook_04_still_background_figures_are_the_ones_its_text_gives(executed):
-    """Issue 9: the section compares the paper (anchor: null) with the still background; its prose quotes the printed figures."""
-    nb = executed(next(p for p in NOTEBOOKS if p.name.startswith("04_")))
+def _still_background_lines(nb) -> tuple[str, str]:
+    """Notebook 04's printed ``Result.quality.line()`` of the paper's blend and of the still background."""
     cell = next(c for c in nb.cells if "still-background" in c.get("metadata", {}).get("tags", []))
     text = "".join(o.get("text", "") for o in cell.outputs if o.output_type == "stream")
     paper, still = (line.strip() for line in text.splitlines()[1::2])
+    return paper, still
+
+
+def _figures(line: str) -> dict[str, float]:
+    """The numbers of a ``Summary.line()``: lines px, folds %, moved °, distortion mean and p99, far moved ° (0: still)."""
+    found = {
+        "lines": re.search(r"lines within ([\d.e+-]+) px", line),
+        "folds": re.search(r"folds ([\d.e+-]+)%", line),
+        "shown": re.search(r"sphere shown ([\d.e+-]+)%", line),
+        "moved": re.search(r"moved ([\d.e+-]+)° on average", line),
+        "distortion": re.search(r"distortion ([\d.e+-]+) \(p99 ([\d.e+-]+)\)", line),
+    }
+    assert all(found.values()), line
+    far = re.search(r"far from the handles moved ([\d.e+-]+)°", line)
+    assert far or "far from the handles still" in line, line
+    return {
+        **{k: float(m.group(1)) for k, m in found.items()},
+        "p99": float(found["distortion"].group(2)),
+        "far": float(far.group(1)) if far else 0.0,
+    }
+
+
+def test_notebook_04_still_background_figures_meet_issue_9(executed):
+    """Issue 9: what the section prints is right, not only quoted: the still background meets the issue's figures
+    (no fold-over, at least 99.5% shown, distortion mean 0.05 and p99 0.5, moved 0.5°, the far field still: below
+    0.005°, the printout's resolution), and the paper's method (anchor: null) on the same handles is far worse."""
+    nb = executed(next(p for p in NOTEBOOKS if p.name.startswith("04_")))
+    paper, still = (_figures(line) for line in _still_background_lines(nb))
+    assert still["folds"] == 0 and still["shown"] >= 99.5 and still["far"] == 0, still
+    assert still["distortion"] <= 0.05 and still["p99"] <= 0.5 and still["moved"] <= 0.5, still
+    assert still["lines"] <= 0.33 and paper["lines"] <= 0.33, (still, paper)  # "within a third of a pixel" either way
+    # the paper's: folds, moves the sphere tens of times as far and the far field with it
+    assert paper["folds"] > 0 and paper["moved"] > 10 * still["moved"] and paper["far"] > 5, paper
+    assert paper["distortion"] > 10 * still["distortion"], (paper, still)
+
+
+def test_notebook_04_prose_quotes_the_figures_it_prints(executed):
+    """A documentation check, not a correctness one: the section's prose gives the figures its cell prints."""
+    nb = executed(next(p for p in NOTEBOOKS if p.name.startswith("04_")))
+    paper, still = _still_background_lines(nb)
     for quoted in ("folds 2.5%", "moved 14° on average", "distortion 8.4", "far from the handles moved 25°"):
         assert quoted in paper, paper
     for quoted in ("folds 0%", "moved 0.066° on average", "distortion 0.025", "far from the handles still"):

@@ -1,16 +1,15 @@
 """The mesh-and-weights pane: per-handle weights, the pyvista mesh, off-screen renders, the 2D overlay, the notebook pane."""
 
 import os
+import subprocess
+import sys
 import warnings
 
+import numpy as np
 import pytest
 
-if not os.environ.get("DISPLAY"):
-    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")  # before vtk is imported
-
+# no environment set here: omniwidget.pane itself chooses EGL where there is no display (the test below)
 pv = pytest.importorskip("pyvista")
-
-import numpy as np  # noqa: E402
 
 import omniwidget as ow  # noqa: E402
 from omniwidget import pane  # noqa: E402
@@ -30,6 +29,20 @@ SCENE = {
     "options": {"rectify": "all"},
 }
 SIZE = (240, 240)
+
+
+def test_importing_the_pane_without_a_display_chooses_egl():
+    """What lets the renders below run headless: the library sets ``VTK_DEFAULT_OPENGL_WINDOW``, not the tests.
+
+    In a fresh process without ``DISPLAY``/``WAYLAND_DISPLAY``: set to EGL on import; one given is kept.
+    """
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "VTK_DEFAULT_OPENGL_WINDOW")}
+    code = "import os, omniwidget.pane; print(os.environ.get('VTK_DEFAULT_OPENGL_WINDOW'))"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout.split()
+    assert out == (["vtkEGLRenderWindow"] if sys.platform.startswith("linux") else ["None"])
+    kept = {**env, "VTK_DEFAULT_OPENGL_WINDOW": "vtkOSOpenGLRenderWindow"}
+    out = subprocess.run([sys.executable, "-c", code], env=kept, capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["vtkOSOpenGLRenderWindow"]
 
 
 def _warp(document, width=512):

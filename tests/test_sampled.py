@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from omniwidget.core import _kernels, coords
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.core.handles import SUGGESTED_ANCHOR, CageHandle, Handles, LineHandle, Options, PointHandle
 from omniwidget.core.locate import face_neighbours, locate_faces
 from omniwidget.core.pipeline import warp
 from omniwidget.core.quality import cage_motion, straightness
@@ -37,14 +37,25 @@ def _source_error(fast, exact) -> np.ndarray:
     return coords.angular_distance(lonlat(sampled.astype(np.float64)), lonlat(remap_coordinates(exact.inverse, W, W))) * W / 360
 
 
-@pytest.fixture(scope="module")
-def room():
-    """Lines only fold and swing the far field here: the hardest map to sample; a cage and a point too."""
+#: README (Measured): the sampled blend's sources within 0.4 px of the exact map's, 0.18 px at the 99.9th
+#: percentile. Measured on the room below: max 0.29 px, p99.9 0.14 px (paper's mode); max 0.31 px, p99.9
+#: 0.12 px (default). By design the interpolation is kept where it is within a quarter of a pixel, so these
+#: bounds are the claim itself (1.3x the measured), not a multiple of it.
+SOURCE_MAX_PX, SOURCE_P999_PX = 0.4, 0.18
+
+
+@pytest.fixture(scope="module", params=[None, SUGGESTED_ANCHOR], ids=["paper", "default"])
+def room(request):
+    """Lines only fold and swing the far field in the paper's mode (``anchor: null``): the hardest map to sample,
+    checked to fold; and the same handles in the default mode (the still background). A cage and a point too."""
     scene = synthetic_room(W, size=(4.0, 3.0, 3.0), camera=(0.3, -0.2, -1.0), yaw=52.0)
     lines = mark_lines(scene, 8, seed=5, keep_clear=((np.array(CAGE.vertices), 12.0),))
     point = PointHandle((60.0, -40.0), target=(66.0, -36.0), scale=1.2, rotation=15.0)
-    doc = Handles((*(LineHandle(line.start, line.end) for line in lines), CAGE, point), Options(rectify="all"))
-    return scene, doc, *_both(scene.image, doc)
+    doc = Handles((*(LineHandle(line.start, line.end) for line in lines), CAGE, point), Options(rectify="all", anchor=request.param))
+    fast, exact = _both(scene.image, doc)
+    if request.param is None:  # the precondition of "the hardest map": it folds (1.55% of the sphere)
+        assert exact.folds.area > 1e-3, f"the paper's map should fold here: {exact.folds.area:.2e}"
+    return scene, doc, fast, exact
 
 
 def test_sampled_warp_matches_the_exact_one(room):
@@ -52,11 +63,10 @@ def test_sampled_warp_matches_the_exact_one(room):
     assert not np.array_equal(fast.image, exact.image)  # the sampled path ran (the exact one is deterministic)
     difference = np.abs(fast.image.astype(int) - exact.image.astype(int))
     error = _source_error(fast, exact)
-    print(
-        f"\nsampled vs exact: image MAD {difference.mean():.3f}, sources p99.9 {np.percentile(error, 99.9):.3f} px, max {error.max():.3f} px"
-    )
-    assert difference.mean() < 0.5
-    assert np.percentile(error, 99.9) < 0.25 and error.max() < 1.0
+    p999 = np.percentile(error, 99.9)
+    print(f"\nsampled vs exact: image MAD {difference.mean():.3f}, sources p99.9 {p999:.3f} px, max {error.max():.3f} px")
+    assert difference.mean() < 0.25  # measured 0.025 (paper) and 0.005 levels (default)
+    assert p999 < SOURCE_P999_PX and error.max() < SOURCE_MAX_PX, (p999, error.max())
     assert abs(fast.folds.area - exact.folds.area) < 1e-4 and fast.warnings == exact.warnings
     assert np.array_equal(fast.inverse_map(np.float64), exact.inverse_map(np.float64))  # what is measured is exact either way
 
@@ -69,6 +79,7 @@ def test_lines_and_cages_come_out_as_the_exact_map_makes_them(room):
         px = np.floor(coords.lonlat_to_px(out, W) + 0.5).astype(int)
         for dx in (-2, 0, 2):
             for dy in (-2, 0, 2):
+                # measured 8.5e-5 px (both modes): float32 coordinates resolve 2.4e-4 px at this width
                 assert error[np.clip(px[:, 1] + dy, 0, W // 2 - 1), (px[:, 0] + dx) % W].max() < 1e-3
         # and the lines measured on the image's own coordinates are as straight
         ours = straightness(fast.forward_points(samples, control), W, fit="best")
@@ -77,7 +88,7 @@ def test_lines_and_cages_come_out_as_the_exact_map_makes_them(room):
         [c.moebius.inverse for c in fast.controls], fast.vertices, fast.faces, fast.weights, W, W, 4, fast.constraints.points
     )
     lonlat = np.stack([(sampled[..., 0] - PAD + 0.5) * 360 / W - 180, 90 - (sampled[..., 1] - PAD + 0.5) * 360 / W], axis=-1)
-    assert cage_motion(lonlat.astype(np.float64), CAGE.vertices) < 0.01
+    assert cage_motion(lonlat.astype(np.float64), CAGE.vertices) < 1e-3  # measured 0.0 (both modes)
 
 
 def test_a_pole_brought_into_view_is_evaluated_exactly():
@@ -86,8 +97,9 @@ def test_a_pole_brought_into_view_is_evaluated_exactly():
     doc = Handles((PointHandle((0.0, 80.0), target=(0.0, 10.0), rotation=30.0), LineHandle((90.0, -20.0), (130.0, -25.0))))
     fast, exact = _both(image, doc)
     error = _source_error(fast, exact)
-    assert error.max() < 1.0, error.max()
-    assert np.abs(fast.image.astype(int) - exact.image.astype(int)).mean() < 0.5
+    # measured max 0.30 px, p99.9 0.13 px, image MAD 0.033 levels
+    assert error.max() < SOURCE_MAX_PX and np.percentile(error, 99.9) < SOURCE_P999_PX, (error.max(), np.percentile(error, 99.9))
+    assert np.abs(fast.image.astype(int) - exact.image.astype(int)).mean() < 0.25
 
 
 def test_pixels_outside_their_candidate_faces_are_walked_to_or_reported(room):
