@@ -41,7 +41,7 @@ if TYPE_CHECKING:
     from .core.constraints import Constraints
     from .core.pipeline import Result
 
-__all__ = ["AUTOSAVE_SUFFIX", "DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "RESULT_SUFFIX", "EditingSession"]
+__all__ = ["AUTOSAVE_SUFFIX", "DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "RESULT_SUFFIX", "EditingSession", "as_document"]
 
 #: Width of the result computed after every edit (the issue's "about 1024 x 512").
 PREVIEW_WIDTH = 1024
@@ -65,7 +65,8 @@ _PACKAGE = Path(__file__).resolve().parent  # never written to (the bundled samp
 _HANDLE_NAME = re.compile(r"handles\[(\d+)\]")
 
 
-def _as_document(value: Any) -> Handles:
+def as_document(value: Any) -> Handles:
+    """A handles document from a :class:`Handles`, its JSON-ready dict or its JSON text (validated)."""
     if isinstance(value, Handles):
         return value
     if isinstance(value, (str, bytes)):
@@ -321,7 +322,7 @@ class EditingSession:
         self._autosave_bad = False  # the autosave file is unreadable: moved aside at the first edit
         if isinstance(handles, (str, os.PathLike)) and not str(handles).lstrip().startswith("{"):
             handles = load_handles(handles)
-        doc = Handles() if handles is None else _as_document(handles)
+        doc = Handles() if handles is None else as_document(handles)
         saved, problem = _read_autosave(self.autosave_path) if self.autosave_path is not None else (None, "")
         if handles is None and saved is not None and len(saved):
             self._undo.append(doc.to_dict())  # undo: start without them
@@ -401,7 +402,7 @@ class EditingSession:
         HandlesError
             If the document is invalid; nothing changes then.
         """
-        doc = _as_document(handles)
+        doc = as_document(handles)
         new = doc.to_dict()
         if new == self.handles:
             return
@@ -677,7 +678,7 @@ class EditingSession:
 
     def rectify_line(self, index: int) -> None:
         """Rectify line ``index`` and hold every other handle where it is ("rectify current line")."""
-        from .core.rectify import rectify_line
+        from .core.edits import rectify_line
 
         self._handle(index)
         self.edit(rectify_line(self.document, index))
@@ -715,7 +716,7 @@ class EditingSession:
         The live frame then draws from this result's weights (:meth:`live_basis_message`); the
         document itself changes when the drag ends.
         """
-        doc = _as_document(document)
+        doc = as_document(document)
         key = json.dumps(doc.to_dict(), sort_keys=True)
         self._schedule(lambda generation: self._compute(doc, key, generation, full=False))
 

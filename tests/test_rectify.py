@@ -10,7 +10,8 @@ from omniwidget.core.constraints import build_constraints
 from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
 from omniwidget.core.pipeline import BlendWarning, warp
 from omniwidget.core.quality import cage_motion, straightness
-from omniwidget.core.rectify import Anchor, Bone, crossing_pairs, rectify_line, solve_bones
+from omniwidget.core.edits import rectify_line
+from omniwidget.core.rectify import Anchor, Bone, crossing_pairs, solve_bones
 from omniwidget.core.scenes import mark_lines, synthetic_room
 
 from .conftest import random_lonlat

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._checks import whole_number
-from .bbw import _as_constraints, _as_mesh
+from .bbw import as_constraints, as_mesh
 
 __all__ = ["igl_bbw", "igl_version", "load_igl"]
 
@@ -94,8 +94,8 @@ def igl_bbw(V: ArrayLike, F: ArrayLike, b: ArrayLike, bc: ArrayLike, *, max_iter
         If the installed bindings have neither ``igl.bbw`` nor ``igl.BBW``, or return
         weights of the wrong shape.
     """
-    v, f = _as_mesh(V, F)
-    idx, values = _as_constraints(v.shape[0], b, bc)
+    v, f = as_mesh(V, F)
+    idx, values = as_constraints(v.shape[0], b, bc)
     max_iter = whole_number(max_iter, "max_iter", 1)
     igl = load_igl()
     if hasattr(igl, "BBW"):  # libigl 2.2 - 2.5: a solver class with Eigen::MatrixXi / VectorXi arguments

@@ -28,7 +28,7 @@ from scipy.spatial import ConvexHull
 
 from ._checks import whole_number
 
-__all__ = ["bbw", "bilaplacian", "cotangent_laplacian", "mass_matrix", "normalize_rows"]
+__all__ = ["as_constraints", "as_mesh", "bbw", "bilaplacian", "cotangent_laplacian", "mass_matrix", "normalize_rows"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -55,7 +55,7 @@ START_RESIDUAL = 1e-12
 
 
 # --- validation ----------------------------------------------------------------------
-def _as_mesh(V: ArrayLike, F: ArrayLike) -> tuple[FloatArray, IntArray]:
+def as_mesh(V: ArrayLike, F: ArrayLike) -> tuple[FloatArray, IntArray]:
     """Check a triangle mesh; returns ``V`` as C-contiguous float64 and ``F`` as C-contiguous int64."""
     v = np.ascontiguousarray(V, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] < 3:
@@ -88,7 +88,7 @@ def _as_mesh(V: ArrayLike, F: ArrayLike) -> tuple[FloatArray, IntArray]:
     return v, f
 
 
-def _as_constraints(n: int, b: ArrayLike, bc: ArrayLike) -> tuple[IntArray, FloatArray]:
+def as_constraints(n: int, b: ArrayLike, bc: ArrayLike) -> tuple[IntArray, FloatArray]:
     """Check the constrained vertices ``b`` and their values ``bc`` (shape ``(len(b), k)``)."""
     idx = np.asarray(b)
     if idx.ndim != 1 or idx.size == 0:
@@ -148,7 +148,7 @@ def cotangent_laplacian(V: ArrayLike, F: ArrayLike) -> sp.csr_matrix:
     ValueError
         If the mesh is malformed (shapes, indices, degenerate or unused vertices).
     """
-    v, f = _as_mesh(V, F)
+    v, f = as_mesh(V, F)
     return _laplacian(v, f)
 
 
@@ -185,7 +185,7 @@ def mass_matrix(V: ArrayLike, F: ArrayLike, kind: str = "voronoi") -> sp.csr_mat
         Diagonal, positive; its trace is the surface area (``4 pi`` up to the discretisation
         error for a fine mesh of the unit sphere).
     """
-    v, f = _as_mesh(V, F)
+    v, f = as_mesh(V, F)
     if kind not in ("voronoi", "barycentric"):
         raise ValueError(f"kind must be 'voronoi' or 'barycentric', got {kind!r}")
     return sp.diags(_vertex_areas(v, f, kind), format="csr")
@@ -229,7 +229,7 @@ def bilaplacian(V: ArrayLike, F: ArrayLike) -> sp.csr_matrix:
         kernel; ``1/2 x^T Q x`` approximates ``1/2 int (Delta x)^2``. ``L`` is
         :func:`cotangent_laplacian` and ``M`` the Voronoi :func:`mass_matrix`.
     """
-    v, f = _as_mesh(V, F)
+    v, f = as_mesh(V, F)
     return _bilaplacian(v, f)
 
 
@@ -763,9 +763,9 @@ def _bbw(
     start: ArrayLike | None = None,
 ) -> tuple[FloatArray, dict]:
     """:func:`bbw` and a record of the work done (levels, steps, factorizations, seconds)."""
-    v, f = _as_mesh(V, F)
+    v, f = as_mesh(V, F)
     n = v.shape[0]
-    idx, values = _as_constraints(n, b, bc)
+    idx, values = as_constraints(n, b, bc)
     try:
         tol = float(tol)
     except (TypeError, ValueError):

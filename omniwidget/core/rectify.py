@@ -39,7 +39,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import coords
 from ._checks import whole_number
-from .handles import Handles, LineHandle
 from .moebius import Moebius
 
 if TYPE_CHECKING:
@@ -57,7 +56,6 @@ __all__ = [
     "crossing_pairs",
     "line_neighbourhood",
     "motion_metric",
-    "rectify_line",
     "solve_bones",
 ]
 
@@ -536,57 +534,3 @@ def _polylines_cross(p: NDArray, q: NDArray, tolerance: float) -> bool:
     inside = (s >= 0) & (s <= 1) & (u >= 0) & (u <= 1) & (denom != 0)
     inside &= (at_a > tolerance) & (at_a < along_a[-1] - tolerance) & (at_b > tolerance) & (at_b < along_b[-1] - tolerance)
     return bool(inside.any())
-
-
-def rectify_line(handles: Handles, index: int, *, samples: int = 50) -> Handles:
-    """Rectify one line and leave every other handle as it is (the paper's "rectify current line").
-
-    The line at ``index`` is placed by the least squares of this module with every other
-    handle held where its map puts it now, and gets the solved control points as explicit
-    ``targets``. Lines that were rectified before keep their current output: their solved
-    control points are written into the document as explicit targets too (a line that was
-    split at a crossing keeps ``rectify`` instead, and may move a little).
-
-    Parameters
-    ----------
-    handles : Handles
-    index : int
-        Position of a line handle in ``handles.handles``.
-    samples : int
-        Samples per line in the relative-position terms.
-
-    Returns
-    -------
-    Handles
-        A new document; ``handles`` is not changed.
-    """
-    from dataclasses import replace
-
-    from .constraints import build_constraints
-
-    items = list(handles.handles)
-    if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not -len(items) <= index < len(items):
-        raise IndexError(f"handles[{index}]: there are {len(items)} handles")
-    index = int(index) % len(items)
-    if not isinstance(items[index], LineHandle):
-        raise ValueError(f"handles[{index}] is a {items[index].kind} handle, not a line")
-    current = build_constraints(handles, samples=samples)
-    pieces: dict[int, list[Moebius]] = {}
-    for control in current.controls:
-        pieces.setdefault(control.handle, []).append(control.moebius)
-    for i, h in enumerate(items):  # freeze the other lines where they are now
-        if i != index and isinstance(h, LineHandle) and h.targets is None and h.rectify and len(pieces[i]) == 1:
-            items[i] = replace(h, rectify=False, targets=_as_targets(pieces[i][0](h.control_points())))
-    frozen = [replace(h, rectify=False) if isinstance(h, LineHandle) and i != index else h for i, h in enumerate(items)]
-    line = replace(items[index], rectify=True, targets=None)
-    frozen[index] = line
-    alone = build_constraints(replace(handles, handles=tuple(frozen), options=replace(handles.options, rectify="all")), samples=samples)
-    maps = [c.moebius for c in alone.controls if c.handle == index]
-    if len(maps) == 1:  # not split by a crossing: write its solved control points
-        line = replace(line, rectify=False, targets=_as_targets(maps[0](line.control_points())))
-    items[index] = line
-    return replace(handles, handles=tuple(items))
-
-
-def _as_targets(points: NDArray[np.float64]) -> tuple[tuple[float, float], ...]:
-    return tuple((float(lon), float(lat)) for lon, lat in points)

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from ..core.errors import HandlesError
 from ..core.handles import Handles
-from ..session import AUTOSAVE_SUFFIX, DISPLAY_WIDTH, HISTORY, PREVIEW_WIDTH, RESULT_SUFFIX, EditingSession, _as_document
+from ..session import AUTOSAVE_SUFFIX, DISPLAY_WIDTH, HISTORY, PREVIEW_WIDTH, RESULT_SUFFIX, EditingSession, as_document
 
 __all__ = ["AUTOSAVE_SUFFIX", "DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "RESULT_SUFFIX", "Editor", "saved_handles"]
 
@@ -47,7 +47,7 @@ class _Document(traitlets.TraitType):
 
     def validate(self, obj: Any, value: Any) -> dict:
         try:
-            return _as_document(value).to_dict()
+            return as_document(value).to_dict()
         except HandlesError as exc:
             raise _RefusedHandles(exc.where, exc.problem) from None
 
