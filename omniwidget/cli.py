@@ -137,7 +137,7 @@ def _cmd_warp(args: argparse.Namespace) -> None:
 def _warp_one(args: argparse.Namespace) -> None:
     from .core.errors import ImageError
     from .core.handles import load_handles
-    from .core.io import _encode, _write_bytes, check_writable, read_panorama
+    from .core.io import check_writable, encode_image, read_panorama, write_bytes
 
     (source,) = args.input
     if _same_file(args.output, source):
@@ -148,11 +148,11 @@ def _warp_one(args: argparse.Namespace) -> None:
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
     result = _warp_quietly(image, handles, width=args.width, order=args.order)
     # both encoded before either is written: a failure leaves no output at all
-    outputs = [(args.output, _encode(args.output, result.image))]
+    outputs = [(args.output, encode_image(args.output, result.image))]
     if args.map is not None:
-        outputs.append((args.map, _encode(args.map, result.inverse_map())))  # .npy: the float32 array as it is
+        outputs.append((args.map, encode_image(args.map, result.inverse_map())))  # .npy: the float32 array as it is
     for path, data in outputs:
-        _write_bytes(path, data)
+        write_bytes(path, data)
 
 
 def _frame_outputs(args: argparse.Namespace) -> list[Path]:

@@ -15,7 +15,10 @@ warp may).
 
 The kernels themselves are module-level functions of :mod:`omniwidget.core._numba_kernels`,
 so numba's on-disk cache serves every new process (issue 18): the first warp in a fresh
-process reads them instead of compiling them.
+process reads them instead of compiling them. Each is also kept on disk as plain machine
+code (:mod:`omniwidget.core._native`), which a new process loads with llvmlite alone
+without importing numba: about half a second less before a fresh process's first warp.
+Every kernel takes C-contiguous, writeable arrays (:func:`_plain`), one type per argument.
 
 Without numba (``pip install numba``, or the ``fast`` extra), or with the environment
 variable ``OMNIWIDGET_NUMBA=0``, :func:`available` is False and the numpy path runs; the
@@ -25,42 +28,35 @@ two agree to float32 rounding (``tests/test_kernels.py``).
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Sequence
-from functools import cache
-from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
 
-from . import coords
+from . import _native, coords
+from ._native import available
 from .locate import EDGE_TOLERANCE, face_neighbours
 from .moebius import Moebius
-from .warping import PAD, _run_blocks
+from .warping import PAD, run_blocks
 
-__all__ = ["available", "blend_blocks", "blend_coordinates", "fold_mask", "interpolate_shift", "paint", "strongest_weights", "walk_blend"]
+__all__ = [
+    "available",
+    "blend_blocks",
+    "blend_coordinates",
+    "fold_mask",
+    "interpolate_shift",
+    "split_sum",
+    "strongest_weights",
+    "walk_blend",
+]
 
 #: Faces a pixel's walk from its neighbour's face crosses, at most, before it is left to a slower search.
 WALK_STEPS = 256
 
 
-@cache
-def available() -> bool:
-    """Whether the compiled kernels can be used: numba imports and ``OMNIWIDGET_NUMBA`` is not ``0``."""
-    if os.environ.get("OMNIWIDGET_NUMBA", "1") == "0":
-        return False
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def _compiled() -> ModuleType:
-    """The kernels (:mod:`omniwidget.core._numba_kernels`), imported, and so compiled or read from numba's cache, on first use."""
-    from . import _numba_kernels
-
-    return _numba_kernels
+def _compiled() -> _native.Kernels:
+    """The kernels of :mod:`omniwidget.core._numba_kernels` by name: their stored native code, else numba (:mod:`omniwidget.core._native`)."""
+    return _native.kernels()
 
 
 def _matrices(inverses: Sequence[Moebius]) -> NDArray[np.float64]:
@@ -99,8 +95,8 @@ def blend_coordinates(
     height, width = face.shape
     out = np.empty((height, width, 2), np.float32)
     mesh, grid = _mesh_args(planes, faces, weights, inverses), _grid_args(width, src_width)
-    face = np.ascontiguousarray(face)
-    _run_blocks(height, lambda rows: blend_rows(rows.start, rows.stop, face, *mesh, *grid, out))
+    face = _plain(face)
+    run_blocks(height, lambda rows: blend_rows(rows.start, rows.stop, face, *mesh, *grid, out))
     return out
 
 
@@ -158,7 +154,7 @@ def walk_blend(
     out = np.empty((height, width, 2), np.float32)
     face = np.empty((height, width), np.int32)
     missed = np.zeros((height, width), dtype=bool)
-    _run_blocks(
+    run_blocks(
         height,
         lambda rows: kernel(rows.start, rows.stop, 0, planes, slack, neighbours, walk, *mesh[1:], *grid, out, face, missed),
     )
@@ -168,6 +164,42 @@ def walk_blend(
         face, planes = locate_faces(v, f, width)
         out = blend_coordinates(face, planes, f, weights, inverses, src_width)
     return out, face, planes
+
+
+def split_sum(
+    face: NDArray[np.int32],
+    planes: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    weights: NDArray[np.floating],
+    inverses: Sequence[Moebius],
+    moving: Sequence[int],
+) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Eq. (2)'s un-normalised sum with some controls taken apart (:func:`omniwidget.core.live.live_basis`).
+
+    Parameters
+    ----------
+    face, planes, faces, weights, inverses
+        As in :func:`blend_coordinates`.
+    moving : sequence of int
+        The controls taken apart, in the order of the returned weights' columns.
+
+    Returns
+    -------
+    fixed : ndarray of float32, shape (H, W, 3)
+        ``Σ_{j not moving} W_j(p) M_j⁻¹(p)`` per pixel.
+    weights : ndarray of float32, shape (H, W, c)
+        ``W_j(p)`` of the moving controls.
+    """
+    height, width = face.shape
+    slot = np.full(len(inverses), -1, np.int64)
+    slot[list(moving)] = np.arange(len(moving))
+    fixed = np.empty((height, width, 3), np.float32)
+    apart = np.empty((height, width, len(moving)), np.float32)
+    mesh, grid = _mesh_args(planes, faces, weights, inverses), _grid_args(width, width)[:4]
+    face = _plain(face)
+    kernel = _compiled().split_rows
+    run_blocks(height, lambda rows: kernel(rows.start, rows.stop, face, *mesh, slot, *grid, fixed, apart))
+    return fixed, apart
 
 
 def blend_blocks(
@@ -215,10 +247,10 @@ def blend_blocks(
     grid = _grid_args(out.shape[1], src_width)
     neighbours = face_neighbours(mesh[1]) if neighbours is None else neighbours
     missed = np.zeros(out.shape[:2], dtype=bool)
-    cell_r, cell_c = np.nonzero(cells)
-    samples = np.ascontiguousarray(samples, np.int32)
+    cell_r, cell_c = (_plain(x) for x in np.nonzero(cells))
+    samples = _plain(samples, np.int32)
 
-    _run_blocks(
+    run_blocks(
         len(cell_r),
         lambda block: blend_cells(
             block.start, block.stop, cell_r, cell_c, step, samples, mesh[0], slack, neighbours, walk, *mesh[1:], *grid, out, missed
@@ -245,27 +277,45 @@ def interpolate_shift(shift: NDArray[np.float32], exact: NDArray[np.bool_], src_
     step = out.shape[1] // exact.shape[1]
     padded = np.ascontiguousarray(np.concatenate([shift[:, -1:], shift, shift[:, :1]], axis=1), np.float64)
     lon, lat = coords.grid_lonlat(out.shape[1])
-    exact = np.ascontiguousarray(exact)
+    exact = _plain(exact)
     per_degree = src_width / 360.0
     xc = (np.arange(out.shape[1]) + 0.5) / step + 0.5  # in samples; shift has one wrapped sample on each side
     column = np.floor(xc).astype(np.int64)
     part = xc - column
     base_x = (lon + 180.0) * per_degree
-    _run_blocks(
+    run_blocks(
         len(out),
         lambda rows: interpolate_rows(
-            rows.start, rows.stop, padded, step, exact, column, part, base_x, float(src_width), per_degree, lat, float(PAD), out
+            rows.start,
+            rows.stop,
+            padded,
+            step,
+            exact,
+            column,
+            part,
+            base_x,
+            float(src_width),
+            per_degree,
+            lat,
+            float(PAD),
+            out,
+            np.empty(padded.shape[1]),  # scratch rows, one pair per block
+            np.empty(padded.shape[1]),
         ),
     )
 
 
+def _plain(a: NDArray, dtype: type | None = None) -> NDArray:
+    """``a`` as a C-contiguous, aligned, writeable array (a copy only if it is not one): the kernels' arrays.
+
+    One type per argument for numba's dispatch whatever the caller's array (a read-only
+    mesh, a strided view), and the arrays a stored native kernel takes (:mod:`._native`).
+    """
+    return np.require(a, dtype, ("C", "A", "W"))
+
+
 def _mesh_args(planes, faces, weights, inverses) -> tuple:
-    return (
-        np.ascontiguousarray(planes, np.float64),
-        np.ascontiguousarray(faces, np.int64),
-        np.ascontiguousarray(weights, np.float32),
-        _matrices(inverses),
-    )
+    return (_plain(planes, np.float64), _plain(faces, np.int64), _plain(weights, np.float32), _matrices(inverses))
 
 
 def _grid_args(width: int, src_width: int) -> tuple:
@@ -297,29 +347,9 @@ def fold_mask(coordinates: NDArray[np.float32], src_width: int, pole_margin: flo
     per_degree = src_width / 360.0
     top = pole_margin * per_degree - 0.5
     bottom = (180.0 - pole_margin) * per_degree - 0.5
-    c = np.ascontiguousarray(coordinates)
-    _run_blocks(len(mask), lambda rows: fold_rows(rows.start, rows.stop, c, float(src_width), float(PAD), top, bottom, mask))
+    c = _plain(coordinates)
+    run_blocks(len(mask), lambda rows: fold_rows(rows.start, rows.stop, c, float(src_width), float(PAD), top, bottom, mask))
     return mask
-
-
-def paint(run_face: NDArray[np.int64], flat_start: NDArray[np.int64], length: NDArray[np.int64], size: int) -> NDArray[np.int32]:
-    """Paint runs of pixels with their faces: what :func:`omniwidget.core.locate.locate_faces` does, without index arrays.
-
-    Parameters
-    ----------
-    run_face, flat_start, length : ndarray of int64, shape (r,)
-        Run ``i`` gives ``length[i]`` pixels from the flat index ``flat_start[i]`` on the face ``run_face[i]``.
-    size : int
-        Pixels in all.
-
-    Returns
-    -------
-    ndarray of int32, shape (size,)
-        -1 where no run reaches.
-    """
-    out = np.full(size, -1, np.int32)
-    _compiled().paint_runs(run_face.astype(np.int32), flat_start.astype(np.int64), length.astype(np.int64), out)
-    return out
 
 
 def strongest_weights(
@@ -339,16 +369,16 @@ def strongest_weights(
     -------
     ndarray of float64, shape (k,)
     """
-    rows, cols = np.nonzero(mask)
+    rows, cols = (_plain(x) for x in np.nonzero(mask))
     lon, lat = (np.radians(x) for x in coords.grid_lonlat(mask.shape[1]))
     out = np.zeros(weights.shape[1])
     _compiled().strongest(
         rows,
         cols,
-        face,
-        np.ascontiguousarray(planes, np.float64),
-        np.ascontiguousarray(faces, np.int64),
-        np.ascontiguousarray(weights, np.float64),
+        _plain(face),
+        _plain(planes, np.float64),
+        _plain(faces, np.int64),
+        _plain(weights, np.float64),
         np.cos(lon),
         np.sin(lon),
         np.cos(lat),

@@ -5,14 +5,16 @@ in every new process: a kernel is compiled once per installation and signature, 
 per process, and its cache files are rewritten in place rather than added to. Where the
 package's own folder cannot be written (a read-only site-packages), numba keeps the cache
 in the user's cache folder instead (or in ``NUMBA_CACHE_DIR``). Importing this module
-imports numba; nothing else in omniwidget does.
+imports numba; nothing else in omniwidget does (but :mod:`omniwidget.core._native` when it
+compiles a kernel's native copy, in a process that has just run it through numba). No
+kernel allocates (scratch arrays are passed in): their native copies run without numba's
+runtime.
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 #: Weights at most this are skipped (the numpy path skips a control only where it is below
@@ -34,14 +36,34 @@ def corner_shares(planes, f, x, y, z):  # pragma: no cover
 
 
 @njit(nogil=True, cache=True, inline="always")
+def homogeneous(x, y, z):  # pragma: no cover
+    """[u : v] of the unit vector (x, y, z) as coords.xyz_to_homogeneous chooses it: (ur, ui, vr, vi)."""
+    if z <= 0.0:
+        return x, y, 1.0 - z, 0.0
+    return 1.0 + z, 0.0, x, -y
+
+
+@njit(nogil=True, cache=True, inline="always")
+def weighted_image(mats, j, w, ur, ui, vr, vi):  # pragma: no cover
+    """``w`` times the unit vector M_j([u : v]): one term of eq. (2)'s sum, (x, y, z)."""
+    ar, ai, br, bi = mats[j, 0], mats[j, 1], mats[j, 2], mats[j, 3]
+    cr, ci, dr, di = mats[j, 4], mats[j, 5], mats[j, 6], mats[j, 7]
+    big_ur = ar * ur - ai * ui + br * vr - bi * vi
+    big_ui = ar * ui + ai * ur + br * vi + bi * vr
+    big_vr = cr * ur - ci * ui + dr * vr - di * vi
+    big_vi = cr * ui + ci * ur + dr * vi + di * vr
+    uu = big_ur * big_ur + big_ui * big_ui
+    vv = big_vr * big_vr + big_vi * big_vi
+    share = w / (uu + vv)  # the unit vector (2 U V̄, |U|² - |V|²) / (|U|² + |V|²)
+    return 2.0 * share * (big_ur * big_vr + big_ui * big_vi), 2.0 * share * (big_ui * big_vr - big_ur * big_vi), share * (uu - vv)
+
+
+@njit(nogil=True, cache=True, inline="always")
 def blend_pixel(f, x, y, z, planes, corners, weights, mats):  # pragma: no cover
     """Eq. (2) at the unit vector (x, y, z) in face f: the source's (lon, lat) in radians."""
     b0, b1, b2 = corner_shares(planes, f, x, y, z)
     i0, i1, i2 = corners[f, 0], corners[f, 1], corners[f, 2]
-    if z <= 0.0:  # [u : v] as coords.xyz_to_homogeneous chooses it
-        ur, ui, vr, vi = x, y, 1.0 - z, 0.0
-    else:
-        ur, ui, vr, vi = 1.0 + z, 0.0, x, -y
+    ur, ui, vr, vi = homogeneous(x, y, z)
     sum_r = 0.0
     sum_i = 0.0
     sum_z = 0.0
@@ -49,18 +71,10 @@ def blend_pixel(f, x, y, z, planes, corners, weights, mats):  # pragma: no cover
         w = b0 * weights[i0, j] + b1 * weights[i1, j] + b2 * weights[i2, j]
         if w <= _NEGLIGIBLE:
             continue
-        ar, ai, br, bi = mats[j, 0], mats[j, 1], mats[j, 2], mats[j, 3]
-        cr, ci, dr, di = mats[j, 4], mats[j, 5], mats[j, 6], mats[j, 7]
-        big_ur = ar * ur - ai * ui + br * vr - bi * vi
-        big_ui = ar * ui + ai * ur + br * vi + bi * vr
-        big_vr = cr * ur - ci * ui + dr * vr - di * vi
-        big_vi = cr * ui + ci * ur + dr * vi + di * vr
-        uu = big_ur * big_ur + big_ui * big_ui
-        vv = big_vr * big_vr + big_vi * big_vi
-        share = w / (uu + vv)  # the unit vector (2 U V̄, |U|² - |V|²) / (|U|² + |V|²)
-        sum_r += 2.0 * share * (big_ur * big_vr + big_ui * big_vi)
-        sum_i += 2.0 * share * (big_ui * big_vr - big_ur * big_vi)
-        sum_z += share * (uu - vv)
+        tx, ty, tz = weighted_image(mats, j, w, ur, ui, vr, vi)
+        sum_r += tx
+        sum_i += ty
+        sum_z += tz
     return math.atan2(sum_i, sum_r), math.atan2(sum_z, math.sqrt(sum_r * sum_r + sum_i * sum_i))
 
 
@@ -183,10 +197,11 @@ def blend_cells(
 
 
 @njit(nogil=True, cache=True)
-def interpolate_rows(r0, r1, shift, step, exact, column, part, base_x, src_width, per_degree, lat, pad, out):  # pragma: no cover
+def interpolate_rows(
+    r0, r1, shift, step, exact, column, part, base_x, src_width, per_degree, lat, pad, out, row_x, row_y
+):  # pragma: no cover
+    """``row_x`` and ``row_y``: scratch of ``shift.shape[1]`` float64 each (no kernel allocates: :mod:`omniwidget.core._native`)."""
     rows_c, cols_c = exact.shape
-    row_x = np.empty(shift.shape[1])
-    row_y = np.empty(shift.shape[1])
     for r in range(r0, r1):
         yc = min(max((r + 0.5) / step - 0.5, 0.0), rows_c - 1.0)
         i0 = min(int(yc), rows_c - 2) if rows_c > 1 else 0
@@ -256,3 +271,38 @@ def strongest(rows, cols, face, planes, corners, weights, cos_lon, sin_lon, cos_
             w = b0 * weights[i0, j] + b1 * weights[i1, j] + b2 * weights[i2, j]
             if w > out[j]:
                 out[j] = w
+
+
+@njit(nogil=True, cache=True)
+def split_rows(r0, r1, face, planes, corners, weights, mats, slot, cos_lon, sin_lon, cos_lat, sin_lat, fixed, moving):  # pragma: no cover
+    """Eq. (2)'s sum split for a live drag: the fixed controls' terms summed, the moving controls' weights apart.
+
+    ``slot[j]`` is control j's column in ``moving`` or -1 for a fixed control; ``fixed`` gets
+    the un-normalised sum of the fixed controls' terms.
+    """
+    for r in range(r0, r1):
+        for c in range(face.shape[1]):
+            f = face[r, c]
+            x = cos_lat[r] * cos_lon[c]
+            y = cos_lat[r] * sin_lon[c]
+            z = sin_lat[r]
+            b0, b1, b2 = corner_shares(planes, f, x, y, z)
+            i0, i1, i2 = corners[f, 0], corners[f, 1], corners[f, 2]
+            ur, ui, vr, vi = homogeneous(x, y, z)
+            sum_r = 0.0
+            sum_i = 0.0
+            sum_z = 0.0
+            for j in range(weights.shape[1]):
+                w = b0 * weights[i0, j] + b1 * weights[i1, j] + b2 * weights[i2, j]
+                if slot[j] >= 0:
+                    moving[r, c, slot[j]] = w
+                    continue
+                if w <= _NEGLIGIBLE:
+                    continue
+                tx, ty, tz = weighted_image(mats, j, w, ur, ui, vr, vi)
+                sum_r += tx
+                sum_i += ty
+                sum_z += tz
+            fixed[r, c, 0] = sum_r
+            fixed[r, c, 1] = sum_i
+            fixed[r, c, 2] = sum_z

@@ -32,9 +32,11 @@ __all__ = [
     "check_format",
     "check_panorama",
     "check_writable",
+    "encode_image",
     "read_image",
     "read_panorama",
     "to_equirectangular",
+    "write_bytes",
     "write_image",
 ]
 
@@ -590,7 +592,7 @@ def check_format(path: Path, image: NDArray) -> None:
         raise ImageError(f"{path}: JPEG has no alpha channel; write .png, .tif, .webp or .npy to keep it, or drop it (image[..., :-1])")
 
 
-def _encode(path: Path, image: NDArray) -> bytes:
+def encode_image(path: Path, image: NDArray) -> bytes:
     """The bytes of ``image`` in the format of ``path``'s suffix (checked by :func:`check_writable`)."""
     import cv2
 
@@ -613,7 +615,7 @@ def _encode(path: Path, image: NDArray) -> bytes:
     return encoded.tobytes()
 
 
-def _write_bytes(path: Path, data: bytes) -> None:
+def write_bytes(path: Path, data: bytes) -> None:
     """:func:`atomic_write_bytes`, with a failure said as an :class:`ImageError` naming ``path``."""
     try:
         atomic_write_bytes(path, data)
@@ -641,4 +643,4 @@ def write_image(path: str | os.PathLike[str], image: NDArray) -> None:
         left as it was.
     """
     path = Path(path)
-    _write_bytes(path, _encode(path, image))
+    write_bytes(path, encode_image(path, image))

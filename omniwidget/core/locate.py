@@ -469,10 +469,11 @@ def _grid_faces(mesh: _Mesh, width: int) -> tuple[NDArray[np.int32], FloatArray,
     cos_lat, sin_lat = meridian[:, 0], meridian[:, 2]
 
     run_face, flat_start, length = _runs(mesh, width, cos_lat, sin_lat)
-    from . import _kernels  # noqa: PLC0415 - numba, when it is there, loads only now
+    from . import _native  # noqa: PLC0415 - the compiled kernels, when they are there, load only now
 
-    if _kernels.available():
-        face = _kernels.paint(run_face, flat_start, length, height * width)
+    if _native.available():  # paint the runs in one pass, without index arrays
+        face = np.full(height * width, -1, np.int32)
+        _native.kernels().paint_runs(run_face.astype(np.int32), flat_start.astype(np.int64), length.astype(np.int64), face)
     else:
         face = np.full(height * width, -1, np.int32)
         offsets = np.cumsum(length) - length

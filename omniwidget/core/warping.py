@@ -134,7 +134,7 @@ def _blocks(height: int) -> list[slice]:
     return [slice(s, min(s + BLOCK_ROWS, height)) for s in range(0, height, BLOCK_ROWS)]
 
 
-def _run_blocks(height: int, work: Callable[[slice], None]) -> None:
+def run_blocks(height: int, work: Callable[[slice], None]) -> None:
     blocks = _blocks(height)
     threads = min(len(blocks), os.cpu_count() or 1, 4)
     if threads <= 1:
@@ -167,7 +167,7 @@ def inverse_lonlat(fn: GridInverse, width: int) -> NDArray[np.float64]:
         out[rows, :, 0] = np.degrees(src_lon)
         out[rows, :, 1] = np.degrees(src_lat)
 
-    _run_blocks(width // 2, work)
+    run_blocks(width // 2, work)
     return out
 
 
@@ -184,7 +184,7 @@ def remap_coordinates(fn: GridInverse, width: int, src_width: int, offset: float
         out[rows, :, 0] = src_lon * kx + x0
         out[rows, :, 1] = y0 - src_lat * kx
 
-    _run_blocks(width // 2, work)
+    run_blocks(width // 2, work)
     return out
 
 
