@@ -347,7 +347,7 @@ def knee(line: list[dict]) -> float | None:
     lower latitude measured, and the warp folds.
     """
     line = sorted(line, key=lambda x: x["lat"])
-    for lower, here in zip(line[:-1], line[1:]):
+    for lower, here in zip(line[:-1], line[1:], strict=True):
         a, b = lower["alone eq4"], here["alone eq4"]
         if b["fold"] > 0 and b["p99"] >= KNEE * a["p99"]:
             return float(here["lat"])

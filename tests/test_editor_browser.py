@@ -16,7 +16,6 @@ as it is, drawn dash-dot in green with its warning on hover.
 from __future__ import annotations
 
 import contextlib
-
 import json
 from pathlib import Path
 

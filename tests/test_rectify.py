@@ -7,10 +7,10 @@ import pytest
 
 from omniwidget.core import coords
 from omniwidget.core.constraints import build_constraints
+from omniwidget.core.edits import rectify_line
 from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
 from omniwidget.core.pipeline import BlendWarning, warp
 from omniwidget.core.quality import cage_motion, straightness
-from omniwidget.core.edits import rectify_line
 from omniwidget.core.rectify import Anchor, Bone, crossing_pairs, solve_bones
 from omniwidget.core.scenes import mark_lines, synthetic_room
 

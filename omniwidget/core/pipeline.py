@@ -13,7 +13,6 @@ import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-
 from typing import Any
 
 import numpy as np
