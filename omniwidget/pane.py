@@ -424,9 +424,8 @@ def render_weights(
 
     Notes
     -----
-    Each call builds and closes its own plotter: 0.16 s at 600 x 600 for a 1,650-vertex mesh
-    (EGL on a 2-core machine without GPU), plus about 0.6 s for the first call of a process
-    (importing VTK, starting EGL).
+    Each call builds and closes its own plotter; the first call of a process also imports VTK
+    and starts EGL (times in ``bench/RESULTS.md``).
     """
     plotter = _plotter(result, handle, window_size=window_size, texture=texture, image=image, camera=camera, zoom=zoom)
     try:

@@ -264,3 +264,20 @@ def test_room_lines_rectified_one_at_a_time_are_straight_in_the_image():
         out_gray = result.image.mean(axis=2)
         assert np.median(out_gray[rows, cols]) < 0.5 * np.median(gray), piece  # the edge lies on the chord now
         assert np.median(gray[rows, cols]) > np.median(out_gray[rows, cols]) + 40  # and it did not before
+
+
+def test_single_precision_places_samples_within_opencvs_interpolation_step():
+    """The warp's ``"single"`` arithmetic against ``"double"``: the docstring of ``grid_inverse`` claims it."""
+    from omniwidget.core.moebius import Moebius
+    from omniwidget.core.warping import grid_inverse, remap_coordinates
+
+    width = 2048
+    inverse = Moebius.point_map((10.0, 20.0), (30.0, -5.0), 1.7, 25.0).inverse
+    double = remap_coordinates(grid_inverse(inverse, "double"), width, width)
+    single = remap_coordinates(grid_inverse(inverse, "single"), width, width)
+    step = np.abs(double - single)
+    step[..., 0] = np.minimum(step[..., 0], width - step[..., 0])  # across the seam
+    distance = np.hypot(step[..., 0], step[..., 1])
+    # measured: 0.0156 px at most (next to a pole), 2.5e-4 px at the 99.9th percentile
+    assert distance.max() < 1 / 32, distance.max()
+    assert np.percentile(distance, 99.9) < 1e-3

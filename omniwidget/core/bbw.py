@@ -740,12 +740,12 @@ def bbw(
        previous factorization is bordered (a Schur complement) rather than redone while
        at most ``MAX_BORDER`` vertices differ.
 
-    On a 10,242-vertex icosphere with 10 point handles this takes about 2.5
-    factorizations of ``Q_II`` per handle on the input mesh, where libigl's active set
-    takes about 35. The handles are independent and run in threads. ``bench/bench_bbw.py``
-    compares the times with ``igl.bbw``: about 12x faster there (2 cores), but only 1-2x
-    on meshes of about 2,000 vertices, where libigl needs few steps and factorizations
-    are cheap (the per-handle work is then a few small factorizations either way).
+    The active set starts from the coarse level's solution, so it needs a few
+    factorizations of ``Q_II`` per handle on the input mesh where libigl's active set,
+    starting from nothing, needs many; the handles are independent and run in threads.
+    ``bench/bench_bbw.py`` compares the times with ``igl.bbw`` (``bench/RESULTS.md``): the
+    gain grows with the mesh, since on small meshes libigl needs few steps and
+    factorizations are cheap.
     """
     return _bbw(V, F, b, bc, tol=tol, max_iter=max_iter, multilevel=multilevel, workers=workers, start=start)[0]
 

@@ -109,8 +109,8 @@ class Editor(anywidget.AnyWidget):
     quality : bool
         Measure each result's quality figures after it is shown (straightness, fold-over,
         coverage, displacement, distortion: :attr:`omniwidget.Result.quality`) and show them
-        in one line under the image (``status["quality"]``); about 0.6 s of a core per
-        preview, in a thread of its own, skipped when a newer edit comes first.
+        in one line under the image (``status["quality"]``), in a thread of its own,
+        skipped when a newer edit comes first.
 
     Attributes
     ----------
