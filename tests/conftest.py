@@ -88,3 +88,10 @@ def browser():
     bh.require_browser()
     with bh.launch_browser() as browser:
         yield browser
+
+
+def pytest_collection_modifyitems(config, items):
+    """The real-browser tests (JupyterLab and Notebook 7 each) are slow too: the fast loop, ``-m "not slow"``, leaves them out."""
+    for item in items:
+        if item.get_closest_marker("browser") is not None:
+            item.add_marker(pytest.mark.slow)

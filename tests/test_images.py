@@ -596,6 +596,7 @@ BIG = textwrap.dedent(
 )
 
 
+@pytest.mark.slow  # a 12000 x 6000 warp in a process of its own
 def test_a_12000_by_6000_panorama_warps_within_4_gb(tmp_path):
     """The command line on a 12000 x 6000 JPEG with four handles, in a process of its own (its peak is its own)."""
     from omniwidget.core import _kernels

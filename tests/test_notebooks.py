@@ -26,6 +26,10 @@ SECONDS: dict[str, float] = {}
 FOLDERS: dict[str, Path] = {}
 
 
+# every notebook executed in a kernel (about a minute): the full loop only
+pytestmark = pytest.mark.slow
+
+
 @pytest.fixture(scope="module")
 def executed(tmp_path_factory):
     """``executed(path)``: the notebook run top to bottom (once per session), with its outputs.

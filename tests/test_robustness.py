@@ -157,6 +157,7 @@ FOUND = [
 ]
 
 
+@pytest.mark.slow  # fuzzing / many handles at full size: the full loop only
 @settings(_FUZZ, max_examples=FUZZ_CASES["valid"])
 @given(valid_documents)
 @example({"handles": FOUND[0], "options": {"rectify": "each"}})
@@ -272,6 +273,7 @@ def broken_documents(draw) -> tuple[dict, str]:
     return doc, f"handles[{i}].{key}"
 
 
+@pytest.mark.slow  # fuzzing / many handles at full size: the full loop only
 @settings(_FUZZ, max_examples=FUZZ_CASES["broken"])
 @given(broken_documents())
 def test_fuzzed_broken_documents_are_refused_naming_the_handle_and_field(case):
@@ -502,6 +504,7 @@ def test_a_point_moved_inside_a_fixed_cage_is_a_conflict_and_says_so(room):
         assert not any("holds still" in w for w in quiet.warnings), quiet.warnings
 
 
+@pytest.mark.slow  # fuzzing / many handles at full size: the full loop only
 def test_two_hundred_handles_at_once(room):
     rng = np.random.default_rng(8)
     handles = []
