@@ -72,6 +72,13 @@ def scripted_drag(nb, start, end, hold: bool = False) -> tuple[int, float]:
     return drawn, seconds
 
 
+def hover_until_basis(nb, root, at, generation: int, handle: int) -> None:
+    """Hover ``at`` (a control point of ``handle`` on the result) until its live basis is on the GPU."""
+    nb.page.mouse.move(*at)
+    expected = f"{generation}:{handle}"
+    bh.wait_until(lambda: root.get_attribute("data-live-basis") == expected, timeout=30, description=f"the live basis of handles[{handle}]")
+
+
 def test_the_result_follows_the_mouse_and_matches_the_kernels_result(jupyter_server, browser):
     bh.write_notebook(jupyter_server.root / "live.ipynb", NOTEBOOK)
     with bh.NotebookPage(browser, jupyter_server, "live.ipynb") as nb:
@@ -85,8 +92,7 @@ def test_the_result_follows_the_mouse_and_matches_the_kernels_result(jupyter_ser
 
         # hover the point's east arrow tip: the basis comes before the press
         tip = pane.at(outputs[0][1])
-        nb.page.mouse.move(*tip)
-        bh.wait_until(lambda: root.get_attribute("data-live-basis") == f"{generation}:0", timeout=30, description="the live basis of handles[0]")
+        hover_until_basis(nb, root, tip, generation, 0)
         centre = np.array(pane.at(outputs[0][0]))
         end = centre + 1.6 * (np.array(tip) - centre) + [0, -25]  # pulled out and turned: zoom in and turn
         bh.run_in_kernel(kc, "import numpy as np\nnp.save('start.npy', ed.preview_result.image)")
@@ -130,8 +136,7 @@ def test_the_live_drag_keeps_its_rate_while_the_kernel_computes(jupyter_server, 
         outputs = kernel_json(kc, "ed.outputs")
         pane = Pane(nb, "result")
         vertex = pane.at(outputs[1][2])
-        nb.page.mouse.move(*vertex)
-        bh.wait_until(lambda: root.get_attribute("data-live-basis") == f"{generation}:1", timeout=30, description="the live basis of handles[1]")
+        hover_until_basis(nb, root, vertex, generation, 1)
         # the kernel's worker computes the full-size result, and a thread of the kernel keeps computing till told to stop
         bh.run_in_kernel(
             kc,
