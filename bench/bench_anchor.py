@@ -21,9 +21,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from omniwidget.core.handles import SUGGESTED_ANCHOR, Handles, LineHandle, Options  # noqa: E402
-from omniwidget.core.pipeline import warp  # noqa: E402
-from omniwidget.core.scenes import LINED_ROOMS, lined_room  # noqa: E402
+from omniwidget.document.handles import SUGGESTED_ANCHOR, Handles, LineHandle, Options  # noqa: E402
+from omniwidget.evaluate.scenes import LINED_ROOMS, lined_room  # noqa: E402
+from omniwidget.raster.pipeline import warp  # noqa: E402
 
 #: Rooms that took no part in choosing the defaults: seed and number of lines.
 HELD_OUT = ((6, 6), (7, 7), (8, 8), (9, 9), (10, 10), (11, 8), (12, 6), (13, 10))

@@ -13,7 +13,7 @@ What it measures, on two meshes of the unit sphere with 10 handles:
 * a ~2,000-vertex mesh: the convex hull of 2,000 Fibonacci-sphere points;
 * the 10,242-vertex icosphere (an icosahedron split 1-to-4 five times).
 
-For each: :func:`omniwidget.core.bbw.bbw` with its default threads and with one thread,
+For each: :func:`omniwidget.method.bbw.bbw` with its default threads and with one thread,
 and ``igl.bbw`` (libigl's active set, which uses its own threads), all in this process on
 the same mesh and constraints; the times are medians (after one untimed warm-up of ours),
 the ratio is igl's median over ours, and the largest difference of the weights is printed
@@ -44,7 +44,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 # Run from a checkout without installing: make ``import omniwidget`` find the repository.
 sys.path.insert(0, str(REPO_ROOT))
 
-from omniwidget.core import bbw as bbw_module  # noqa: E402
+from omniwidget.method import bbw as bbw_module  # noqa: E402
 
 HANDLES = 10
 SEED = 20201121
@@ -157,7 +157,7 @@ def bench_mesh(name: str, v: NDArray[np.float64], f: NDArray[np.int64], layout: 
         f"{statistics.mean(finest['factorizations']):.1f} factorizations per handle"
     )
     try:
-        from omniwidget.core._igl import igl_bbw, igl_version
+        from omniwidget.method._igl import igl_bbw, igl_version
 
         theirs, w_igl = timed(lambda: igl_bbw(v, f, b, bc), igl_runs, warmup=0)
     except ImportError as exc:

@@ -10,20 +10,20 @@ Usage::
 What it measures (the issue: "a 12-handle scene at 2048 x 1024 in at most 2 s on a 2-core
 machine; the paper reports 0.4 s per handle, about 4.8 s on a 4-core laptop"):
 
-1. The scene: a :func:`~omniwidget.core.scenes.synthetic_room` 2048 pixels wide turned by a
+1. The scene: a :func:`~omniwidget.evaluate.scenes.synthetic_room` 2048 pixels wide turned by a
    seeded yaw; 8 of its straight lines whose image is bent by at least 5 px, picked at
    random as in ``tests/test_warp.py``, each rectified by eq. (4) (``rectify="each"``);
    2 point handles that move a few degrees, zoom and turn; one fixed 4-vertex cage about
    25 degrees wide; points and cage at least ``CLEARANCE`` degrees from every line sample
    and from each other. That is the issue's list: 8 + 2 + 1 = 11 handles (14 Möbius
    maps, one per cage vertex), not the 12 its title counts.
-2. :func:`omniwidget.core.pipeline.warp` of it, ``--repeat`` times after one untimed
+2. :func:`omniwidget.raster.pipeline.warp` of it, ``--repeat`` times after one untimed
    warm-up: the median of every stage in ``Result.timings``, the median total wall time
    (``time.perf_counter`` around ``warp``) and CPU time (``time.process_time``, all
    threads; CPU / wall shows how much the threads helped on a shared machine), the mesh
    size, the numbers of controls and constrained vertices, and the warp's warnings.
-3. On that mesh with those boundary conditions, :func:`omniwidget.core.bbw.bbw` (median of
-   ``--repeat``) beside ``igl.bbw`` through :mod:`omniwidget.core._igl` (median of
+3. On that mesh with those boundary conditions, :func:`omniwidget.method.bbw.bbw` (median of
+   ``--repeat``) beside ``igl.bbw`` through :mod:`omniwidget.method._igl` (median of
    ``--igl-repeat``), their ratio and the largest difference of the normalised weights.
 
 Nothing is asserted; the exit status is 0 whatever the figures (a scene that cannot be
@@ -49,12 +49,12 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 # Run from a checkout without installing: make ``import omniwidget`` find the repository.
 sys.path.insert(0, str(REPO_ROOT))
 
-from omniwidget.core import coords  # noqa: E402
-from omniwidget.core.bbw import bbw, normalize_rows  # noqa: E402
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle  # noqa: E402
-from omniwidget.core.pipeline import Result, warp  # noqa: E402
-from omniwidget.core.quality import straightness  # noqa: E402
-from omniwidget.core.scenes import synthetic_room  # noqa: E402
+from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle  # noqa: E402
+from omniwidget.evaluate.quality import straightness  # noqa: E402
+from omniwidget.evaluate.scenes import synthetic_room  # noqa: E402
+from omniwidget.method.bbw import bbw, normalize_rows  # noqa: E402
+from omniwidget.raster.pipeline import Result, warp  # noqa: E402
+from omniwidget.sphere import coords  # noqa: E402
 
 WIDTH = 2048
 SEED = 20240611
@@ -167,7 +167,7 @@ def bench_bbw(result: Result, repeat: int, igl_repeat: int) -> None:
     print(f"omniwidget bbw: {describe(walls, cpus)}")
     print(f"  max |normalised W - Result.weights| = {np.abs(normalize_rows(w) - result.weights).max():.2e}")
     try:
-        from omniwidget.core._igl import igl_bbw, igl_version
+        from omniwidget.method._igl import igl_bbw, igl_version
 
         igl_walls, igl_cpus, igl_out = timed(lambda: igl_bbw(v, f, b, bc), igl_repeat)
     except ImportError as exc:

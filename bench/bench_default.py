@@ -6,10 +6,10 @@ Usage::
     python bench/bench_default.py [--half report|choose] [--seeds 40] [--width 2048]
                                   [--families short,long,...] [--json PATH]
 
-For each family of :data:`omniwidget.core.scenes.FAMILIES` and each seed of one half
+For each family of :data:`omniwidget.evaluate.scenes.FAMILIES` and each seed of one half
 (``--half choose``: the even seeds of ``0 .. --seeds - 1``, for choosing settings;
 ``--half report``, the default: the odd ones, held out for reporting), the scene's room is
-rendered at ``--width`` (:func:`~omniwidget.core.scenes.family_scene`) and warped twice:
+rendered at ``--width`` (:func:`~omniwidget.evaluate.scenes.family_scene`) and warped twice:
 by the default mode (``Options()``: rectify "all", the still background) and by the paper's
 (``Options(rectify="all", anchor=None)``). Every figure is measured on the output, at its
 width; per family and mode the table aggregates over the half's scenes:
@@ -22,12 +22,12 @@ width; per family and mode the table aggregates over the half's scenes:
 - distortion: the largest mean and the largest 99th percentile (``Result.quality``);
 - displacement: the largest mean motion of the sphere, degrees;
 - kink: the largest turn of an edge's continuation past its marked piece, degrees of turn
-  per degree of arc (:func:`~omniwidget.core.quality.kink`, over every marked line whose
+  per degree of arc (:func:`~omniwidget.evaluate.quality.kink`, over every marked line whose
   scene line goes on beyond it), with the input's own figure for the same edges beside it;
 - points: the largest centre error (px), zoom error (%) and rotation error (degrees) of
-  the point handles (:func:`~omniwidget.core.quality.point_fidelity`);
+  the point handles (:func:`~omniwidget.evaluate.quality.point_fidelity`);
 - cages: the largest error of a cage's rigid motion inside it, px
-  (:func:`~omniwidget.core.quality.cage_fidelity`, against the rotation that made its targets);
+  (:func:`~omniwidget.evaluate.quality.cage_fidelity`, against the rotation that made its targets);
 - warp: the median seconds of ``warp`` (wall clock, after one warm-up warp; the machine's
   other load counts too).
 
@@ -56,10 +56,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from omniwidget.core.handles import Handles, Options  # noqa: E402
-from omniwidget.core.pipeline import warp  # noqa: E402
-from omniwidget.core.quality import cage_fidelity, kink, point_fidelity, straightness  # noqa: E402
-from omniwidget.core.scenes import FAMILIES, family_scene  # noqa: E402
+from omniwidget.document.handles import Handles, Options  # noqa: E402
+from omniwidget.evaluate.quality import cage_fidelity, kink, point_fidelity, straightness  # noqa: E402
+from omniwidget.evaluate.scenes import FAMILIES, family_scene  # noqa: E402
+from omniwidget.raster.pipeline import warp  # noqa: E402
 
 MODES = {"default": Options(), "paper": Options(rectify="all", anchor=None)}
 #: A marked line continues when its scene line is longer by at least this (degrees).

@@ -45,8 +45,8 @@ sys.path.insert(0, str(REPO_ROOT / "bench"))
 
 from bench_blend import SEED, build_scene  # noqa: E402
 
-from omniwidget.core.handles import Options, PointHandle  # noqa: E402
-from omniwidget.core.pipeline import warp  # noqa: E402
+from omniwidget.document.handles import Options, PointHandle  # noqa: E402
+from omniwidget.raster.pipeline import warp  # noqa: E402
 from omniwidget.widget import Editor  # noqa: E402
 
 

@@ -23,7 +23,7 @@ command line and the reference run one after the other; on a busy machine the lo
 from one round to the next more than between two runs).
 
 Run once beforehand so that the kernels are compiled and stored (numba's cache, and their
-native copies, :mod:`omniwidget.core._native`); the script does one warm-up run of the
+native copies, :mod:`omniwidget._native`); the script does one warm-up run of the
 command line. Run on demand, not a test.
 """
 
@@ -42,14 +42,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench_blend import SEED, build_scene  # noqa: E402
 
-from omniwidget.core.io import write_image  # noqa: E402
+from omniwidget.io.images import write_image  # noqa: E402
 
 NUMPY_WARP = """
 import sys
 import cv2, numpy as np
 from scipy.ndimage import map_coordinates
-from omniwidget.core import coords
-from omniwidget.core.moebius import Moebius
+from omniwidget.sphere import coords
+from omniwidget.sphere.moebius import Moebius
 image = cv2.imread(sys.argv[1], cv2.IMREAD_UNCHANGED)
 width = image.shape[1]
 lon, lat = coords.grid_lonlat(width)

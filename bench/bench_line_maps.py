@@ -16,7 +16,7 @@ point stays and where the segment lies are a choice (``rectify.solve_bones``'s `
   ``rectify.NEAR_LINE`` degrees of each line least (``rectify.motion_metric``).
 
 Each is run on ``scenes.LINED_ROOMS`` with the still background, with and without its
-easing (``pipeline.ease_background``), and measured: how far each line's own map moves the
+easing (``background.ease_background``), and measured: how far each line's own map moves the
 sphere within 4° and 10° of the line (mean over the lines), and the whole warp's figures
 (``Result.quality``). Run on demand, not a test: it swaps the choice in by patching the
 function that makes it.
@@ -35,9 +35,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from omniwidget.core import constraints, pipeline, rectify  # noqa: E402
-from omniwidget.core.handles import SUGGESTED_ANCHOR, Handles, LineHandle, Options  # noqa: E402
-from omniwidget.core.scenes import LINED_ROOMS, lined_room  # noqa: E402
+from omniwidget.document.handles import SUGGESTED_ANCHOR, Handles, LineHandle, Options  # noqa: E402
+from omniwidget.evaluate.scenes import LINED_ROOMS, lined_room  # noqa: E402
+from omniwidget.method import constraints, deformation, rectify  # noqa: E402
+from omniwidget.raster import pipeline
 
 
 def near_motion(result, radius: float) -> float:
@@ -60,7 +61,7 @@ def run(image, doc, keep: str, ease: bool):
     with mock.patch.object(constraints, "solve_bones", chosen):
         if ease:
             return pipeline.warp(image, doc)
-        with mock.patch.object(pipeline, "ease_background", lambda weights: weights):
+        with mock.patch.object(deformation, "ease_background", lambda weights, power=1.0: weights):
             return pipeline.warp(image, doc)
 
 

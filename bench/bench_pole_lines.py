@@ -92,10 +92,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from omniwidget.core import constraints, coords, quality  # noqa: E402
-from omniwidget.core.handles import Handles, LineHandle, Options  # noqa: E402
-from omniwidget.core.pipeline import warp  # noqa: E402
-from omniwidget.core.scenes import mark_lines, synthetic_room  # noqa: E402
+from omniwidget.document.handles import Handles, LineHandle, Options  # noqa: E402
+from omniwidget.evaluate import quality
+from omniwidget.evaluate.scenes import mark_lines, synthetic_room  # noqa: E402
+from omniwidget.method import constraints  # noqa: E402
+from omniwidget.raster.pipeline import warp  # noqa: E402
+from omniwidget.sphere import coords
 
 #: The knee: eq. (4)'s distortion p99 grows by at least this factor over one latitude step (and the warp folds).
 KNEE = 1.5

@@ -7,8 +7,8 @@ Usage::
     python bench/bench_rectify.py --lines 40 --samples 100
 
 What it measures: on a synthetic room at 2048 x 1024, ``--lines`` lines marked as a
-person would (:func:`omniwidget.core.scenes.mark_lines`), all rectified together.
-The median time of :func:`omniwidget.core.rectify.solve_bones` alone (building the
+person would (:func:`omniwidget.evaluate.scenes.mark_lines`), all rectified together.
+The median time of :func:`omniwidget.method.rectify.solve_bones` alone (building the
 least-squares terms and solving), of the whole of ``build_constraints`` (which also splits
 crossings, finds joints and builds every control's map and boundary conditions), and the
 stage times of one whole warp beside them. The paper reports 0.11 s for its example; the
@@ -25,11 +25,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from omniwidget.core.constraints import build_constraints  # noqa: E402
-from omniwidget.core.handles import Handles, LineHandle  # noqa: E402
-from omniwidget.core.pipeline import warp  # noqa: E402
-from omniwidget.core.rectify import Bone, solve_bones  # noqa: E402
-from omniwidget.core.scenes import mark_lines, synthetic_room  # noqa: E402
+from omniwidget.document.handles import Handles, LineHandle  # noqa: E402
+from omniwidget.evaluate.scenes import mark_lines, synthetic_room  # noqa: E402
+from omniwidget.method.constraints import build_constraints  # noqa: E402
+from omniwidget.method.rectify import Bone, solve_bones  # noqa: E402
+from omniwidget.raster.pipeline import warp  # noqa: E402
 
 
 def median_time(fn, repeat: int) -> float:

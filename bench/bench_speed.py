@@ -11,8 +11,8 @@ The figures (the issue's numbering):
 
 1. **End to end**: the 12-handle scene of ``bench/bench_blend.py`` (8 lines, 2 points, a fixed
    4-vertex cage; here rectified "all") at 2048 x 1024, handles to image in memory: median
-   wall time, with the compiled kernels and without (``omniwidget.core._kernels``).
-2. **BBW**: :func:`omniwidget.core.bbw.bbw` against ``igl.bbw`` on the scene's adaptive mesh
+   wall time, with the compiled kernels and without (``omniwidget.raster._kernels``).
+2. **BBW**: :func:`omniwidget.method.bbw.bbw` against ``igl.bbw`` on the scene's adaptive mesh
    and on the 10,242-vertex icosphere with 10 point handles (``bench/bench_bbw.py``'s meshes).
 3. **The per-pixel stage** of the same warp (locate, blend, resampling, fold check), against a
    bare ``cv2.remap`` of the same image with the same coordinates.
@@ -54,11 +54,11 @@ import bench_frames  # noqa: E402
 from bench_bbw import icosphere, point_handles  # noqa: E402
 from bench_blend import SEED, build_scene  # noqa: E402
 
-from omniwidget.core import _kernels  # noqa: E402
-from omniwidget.core.bbw import bbw  # noqa: E402
-from omniwidget.core.handles import Options, PointHandle  # noqa: E402
-from omniwidget.core.pipeline import warp  # noqa: E402
-from omniwidget.core.warping import pad_panorama, remap  # noqa: E402
+from omniwidget.document.handles import Options, PointHandle  # noqa: E402
+from omniwidget.method.bbw import bbw  # noqa: E402
+from omniwidget.raster import _kernels  # noqa: E402
+from omniwidget.raster.pipeline import warp  # noqa: E402
+from omniwidget.raster.warping import pad_panorama, remap  # noqa: E402
 
 PHOTO_12K = REPO_ROOT.parent / "shared" / "data" / "brooklyn_street_12k.jpg"
 PER_PIXEL = ("locate", "blend", "resampling", "fold check")
@@ -116,7 +116,7 @@ def end_to_end(image, scene, repeat: int):
 def bbw_figures(image, scene, result, repeat: int, quick: bool) -> None:
     print("\n2. BBW against igl.bbw")
     try:
-        from omniwidget.core._igl import igl_bbw
+        from omniwidget.method._igl import igl_bbw
     except ImportError as exc:
         print(f"  skipped: {exc}")
         return
@@ -152,7 +152,7 @@ def bbw_figures(image, scene, result, repeat: int, quick: bool) -> None:
 
 def per_pixel(image, result, stage: dict[bool, float]) -> None:
     print("\n3. the per-pixel stage against a bare cv2.remap")
-    from omniwidget.core.frames import map_coordinates
+    from omniwidget.io.frames import map_coordinates
 
     coordinates = map_coordinates(result.inverse_map(), image.shape[1])
     padded = pad_panorama(image)
@@ -204,9 +204,9 @@ import json, resource, sys, time, warnings
 sys.path.insert(0, sys.argv[2]); sys.path.insert(0, sys.argv[2] + "/bench")
 from bench_blend import SEED, build_scene
 from dataclasses import replace
-from omniwidget.core.handles import Options
-from omniwidget.core.io import read_image
-from omniwidget.core.pipeline import warp
+from omniwidget.document.handles import Options
+from omniwidget.io.images import read_image
+from omniwidget.raster.pipeline import warp
 _, scene = build_scene(SEED)
 start = time.perf_counter()
 image = read_image(sys.argv[1])

@@ -11,7 +11,7 @@ What it measures, each figure printed beside its reference:
 
 1. One Möbius warp of a 2048 x 1024 RGB uint8 image held in memory (the map of every
    output pixel plus the bilinear resampling) with
-   :func:`omniwidget.core.warping.warp_moebius`. Target: at most 0.25 s.
+   :func:`omniwidget.raster.warping.warp_moebius`. Target: at most 0.25 s.
 2. The same warp done "the plain vectorised numpy way", written out below: complex
    arithmetic for the source position of every output pixel, then
    ``scipy.ndimage.map_coordinates`` channel by channel. Its output is compared with
@@ -55,9 +55,9 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 # Run from a checkout without installing: make ``import omniwidget`` find the repository.
 sys.path.insert(0, str(REPO_ROOT))
 
-from omniwidget.core.io import read_image, write_image  # noqa: E402
-from omniwidget.core.moebius import Moebius  # noqa: E402
-from omniwidget.core.warping import WarpResult, warp_moebius  # noqa: E402
+from omniwidget.io.images import read_image, write_image  # noqa: E402
+from omniwidget.raster.warping import WarpResult, warp_moebius  # noqa: E402
+from omniwidget.sphere.moebius import Moebius  # noqa: E402
 
 DATA = REPO_ROOT.parent / "shared" / "data"
 PHOTO_2K = DATA / "grabodrertorv.jpg"  # a real 2048 x 1024 panorama, if present
@@ -479,7 +479,7 @@ def bench_cli(repeat: int) -> list[Row]:
             return result.image
 
         cli_run = command_runner(lambda i: cli_command(inp, handles, folder / f"out{i}.png"))
-        startup_run = command_runner(lambda i: [sys.executable, "-c", "import cv2, omniwidget.core.warping"])
+        startup_run = command_runner(lambda i: [sys.executable, "-c", "import cv2, omniwidget.raster.warping"])
         try:
             (cli, _), (same_work, expected), (startup, _) = time_interleaved([cli_run, in_process, startup_run], repeat)
         except RuntimeError as exc:
@@ -488,7 +488,7 @@ def bench_cli(repeat: int) -> list[Row]:
         max_diff = max_difference(read_image(folder / f"out{repeat}.png"), expected)  # the last run's output
     print(f"  CLI whole run:                                         {cli}")
     print(f"  same read + warp + write in this process:              {same_work}")
-    print(f"  start-up: python -c 'import cv2, omniwidget.core.warping': {startup}")
+    print(f"  start-up: python -c 'import cv2, omniwidget.raster.warping': {startup}")
     print(f"  CLI minus (in-process + start-up): {cli.median - same_work.median - startup.median:+.3f} s")
     print(f"  CLI output vs in-process warp: max |difference| {'shapes differ' if max_diff is None else max_diff}")
     same = max_diff == 0
@@ -505,9 +505,9 @@ def bench_cli(repeat: int) -> list[Row]:
 #: the image, warp it unless in "read" mode, and print times and peak memory as JSON.
 CHILD = r"""
 import json, resource, sys, time
-from omniwidget.core.io import read_image
-from omniwidget.core.moebius import Moebius
-from omniwidget.core.warping import warp_moebius
+from omniwidget.io.images import read_image
+from omniwidget.sphere.moebius import Moebius
+from omniwidget.raster.warping import warp_moebius
 
 path, mode, params = sys.argv[1], sys.argv[2], json.loads(sys.argv[3])
 start, cpu = time.perf_counter(), time.process_time()

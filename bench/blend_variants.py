@@ -8,11 +8,11 @@ Usage::
     python bench/blend_variants.py --grid 300           # a finer weight grid for the authors' variants
 
 The scenes are those of ``tests/test_blend.py`` at 2048 x 1024: rooms turned by seeds 1, 6,
-2 and 3 with 6, 12, 9 and 12 lines marked by :func:`~omniwidget.core.scenes.mark_lines`
+2 and 3 with 6, 12, 9 and 12 lines marked by :func:`~omniwidget.evaluate.scenes.mark_lines`
 (``rectify="each"``); for seeds 1 and 6 the lines kept clear of the tests' fixed CAGE and
 moved POINT, warped once with lines only and once with the cage and point added.
 
-Each scene is warped once (:func:`~omniwidget.core.pipeline.warp`); on its mesh and weights,
+Each scene is warped once (:func:`~omniwidget.raster.pipeline.warp`); on its mesh and weights,
 four inverse maps are evaluated in double precision (``blended_inverse``):
 
 * ``ours``: weights barycentric from the mesh at every pixel, the 3D sum normalised;
@@ -23,7 +23,7 @@ four inverse maps are evaluated in double precision (``blended_inverse``):
 Per variant: over the lines, median and max of ``line_straightness`` (best fit, px at 2048)
 and of its excess over the line's own Möbius map alone; the lines the map does not show
 whole (NaN, left out of the medians) and those with a sample found in a fold-over (``in
-fold``: the input is shown twice there and :func:`~omniwidget.core.quality.forward_points`
+fold``: the input is shown twice there and :func:`~omniwidget.evaluate.quality.forward_points`
 may find the other copy, so the figure measures the fold, not a bent line); the fold-over
 area (% of the sphere); the conformal distortion's mean and p99 (within 80 degrees
 latitude); and, against ``ours``, the area-weighted mean and the max of ``|Δlat|`` and the
@@ -47,14 +47,14 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 # Run from a checkout without installing: make ``import omniwidget`` find the repository.
 sys.path.insert(0, str(REPO_ROOT))
 
-from omniwidget.core import coords  # noqa: E402
-from omniwidget.core.blend import blended_inverse, grid_pixel_weights, mesh_pixel_weights  # noqa: E402
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle  # noqa: E402
-from omniwidget.core.locate import locate_grid  # noqa: E402
-from omniwidget.core.pipeline import Result, warp  # noqa: E402
-from omniwidget.core.quality import conformal_distortion, fold_over, forward_points, line_straightness, straightness  # noqa: E402
-from omniwidget.core.scenes import mark_lines, synthetic_room  # noqa: E402
-from omniwidget.core.warping import inverse_lonlat  # noqa: E402
+from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle  # noqa: E402
+from omniwidget.evaluate.quality import conformal_distortion, fold_over, forward_points, line_straightness, straightness  # noqa: E402
+from omniwidget.evaluate.scenes import mark_lines, synthetic_room  # noqa: E402
+from omniwidget.method.locate import locate_grid  # noqa: E402
+from omniwidget.raster.blend import blended_inverse, grid_pixel_weights, mesh_pixel_weights  # noqa: E402
+from omniwidget.raster.pipeline import Result, warp  # noqa: E402
+from omniwidget.raster.warping import inverse_lonlat  # noqa: E402
+from omniwidget.sphere import coords  # noqa: E402
 
 W = 2048
 # As in tests/test_blend.py: a fixed cage and a moved point where no line passes.

@@ -24,10 +24,10 @@ import argparse
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from omniwidget.core import coords
-from omniwidget.core.handles import LineHandle
-from omniwidget.core.moebius import Moebius
-from omniwidget.core.quality import straightness
+from omniwidget.document.handles import LineHandle
+from omniwidget.evaluate.quality import straightness
+from omniwidget.sphere import coords
+from omniwidget.sphere.moebius import Moebius
 
 WIDTH = 2048
 BINS = [(5, 10), (10, 20), (20, 30), (30, 40), (40, 50), (50, 60), (60, 90), (90, 120)]

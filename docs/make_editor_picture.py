@@ -23,7 +23,7 @@ from tests import browser_harness as bh  # noqa: E402
 
 CELL = """\
 import omniwidget as ow
-from omniwidget.cli import DEMO_HANDLES
+from omniwidget.app.cli import DEMO_HANDLES
 
 ed = ow.Editor(ow.sample_path(), DEMO_HANDLES, height=300)
 ed.stage = "side"

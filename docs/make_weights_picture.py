@@ -7,8 +7,8 @@ Usage::
 
 The command-line demo's handles on the bundled panorama, warped at 1024 wide: the adaptive
 mesh coloured by the window line's weights and by the armchair cage's
-(:func:`omniwidget.pane.render_weights`, off-screen), and the line's weights over the
-output panorama (:func:`omniwidget.pane.weights_overlay`).
+(:func:`omniwidget.viz.pane.render_weights`, off-screen), and the line's weights over the
+output panorama (:func:`omniwidget.viz.pane.weights_overlay`).
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 
 import omniwidget as ow
-from omniwidget import pane
-from omniwidget.cli import DEMO_HANDLES
+from omniwidget.viz import pane
+from omniwidget.app.cli import DEMO_HANDLES
 
 OUT = Path(__file__).resolve().parent / "images" / "weights.png"
 

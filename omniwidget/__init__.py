@@ -1,9 +1,13 @@
 """omniwidget: straighten and edit 360° panoramas with blended Möbius transformations.
 
-The numerical core lives in :mod:`omniwidget.core` and needs only numpy, scipy and
-OpenCV; importing :mod:`omniwidget` loads nothing more (the notebook editor,
+The package is layered as the paper reads: :mod:`omniwidget.sphere` (directions, Möbius
+maps), :mod:`omniwidget.document` (the handles), :mod:`omniwidget.method` (controls, the
+Sec. 3.4 solve, mesh, bounded biharmonic weights), :mod:`omniwidget.raster` (the per-pixel
+engine), :mod:`omniwidget.evaluate`, :mod:`omniwidget.io`, :mod:`omniwidget.app`, then the
+widget and the pane; each imports only the layers before it. The core needs only numpy,
+scipy and OpenCV; importing :mod:`omniwidget` loads nothing more (the notebook editor,
 ``omniwidget.Editor`` in :mod:`omniwidget.widget`, loads anywidget when first used).
-Positions at every public boundary are ``[lon, lat]`` in degrees (conventions: :mod:`omniwidget.core.coords`).
+Positions at every public boundary are ``[lon, lat]`` in degrees (conventions: :mod:`omniwidget.sphere.coords`).
 
 Examples
 --------
@@ -15,29 +19,14 @@ Examples
 """
 
 from ._version import __version__
-from .core import (
-    BlendWarning,
-    CageHandle,
-    Handles,
-    HandlesError,
-    ImageError,
-    LineHandle,
-    Moebius,
-    OmniwidgetError,
-    Options,
-    PointHandle,
-    Result,
-    WarpResult,
-    load_handles,
-    read_image,
-    read_panorama,
-    save_handles,
-    to_equirectangular,
-    warp,
-    warp_moebius,
-    write_image,
-)
 from .data import sample_image, sample_path
+from .document.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
+from .errors import HandlesError, ImageError, OmniwidgetError
+from .io.images import read_image, read_panorama, to_equirectangular, write_image
+from .raster.pipeline import BlendWarning, Result, warp
+from .raster.warping import WarpResult, warp_moebius
+from .sphere.coords import lonlat_to_px, lonlat_to_xyz, px_to_lonlat, xyz_to_lonlat
+from .sphere.moebius import Moebius
 
 
 def __getattr__(name: str):  # noqa: ANN202 - the widgets load their stack only when asked for
@@ -64,6 +53,9 @@ __all__ = [
     "WarpResult",
     "__version__",
     "load_handles",
+    "lonlat_to_px",
+    "lonlat_to_xyz",
+    "px_to_lonlat",
     "read_image",
     "read_panorama",
     "sample_image",
@@ -73,4 +65,5 @@ __all__ = [
     "warp",
     "warp_moebius",
     "write_image",
+    "xyz_to_lonlat",
 ]

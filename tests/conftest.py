@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
+from omniwidget.sphere import coords
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 

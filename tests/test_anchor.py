@@ -15,12 +15,13 @@ import warnings
 import numpy as np
 import pytest
 
-from omniwidget.core.handles import SUGGESTED_ANCHOR, CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.moebius import Moebius
-from omniwidget.core.pipeline import BACKGROUND, BACKGROUND_EASE, ease_background, warp
-from omniwidget.core.quality import cage_motion, near_mask, straightness, summary
-from omniwidget.core.rectify import NEAR_LINE, Bone, line_neighbourhood, motion_metric, solve_bones
-from omniwidget.core.scenes import LINED_ROOMS, lined_room, synthetic_room
+from omniwidget.document.handles import SUGGESTED_ANCHOR, CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.evaluate.quality import cage_motion, near_mask, straightness, summary
+from omniwidget.evaluate.scenes import LINED_ROOMS, lined_room, synthetic_room
+from omniwidget.method.background import BACKGROUND, BACKGROUND_EASE, ease_background
+from omniwidget.method.rectify import NEAR_LINE, Bone, line_neighbourhood, motion_metric, solve_bones
+from omniwidget.raster.pipeline import warp
+from omniwidget.sphere.moebius import Moebius
 
 W = 2048
 
@@ -112,7 +113,7 @@ def test_cages_and_points_behave_as_before_with_the_background():
     assert moved < 1e-12, f"{moved:.2e} px"  # README: < 1e-12 px; measured 3.6e-13 px
     control = next(c for c, k in enumerate(still.controls) if k.handle == len(handles) - 1)
     landed = still.forward_points(np.array([point.position]), control)[0]
-    from omniwidget.core import coords
+    from omniwidget.sphere import coords
 
     assert coords.angular_distance(landed, point.target) * W / 360 < 0.25
     assert _excess(still) <= 0.3
@@ -120,7 +121,7 @@ def test_cages_and_points_behave_as_before_with_the_background():
 
 def test_one_handle_alone_moves_only_its_neighbourhood():
     """With the background one point handle is no longer one Möbius map of the whole sphere."""
-    from omniwidget.core.quality import displacement
+    from omniwidget.evaluate.quality import displacement
 
     image = synthetic_room(512).image
     point = PointHandle((0.0, 0.0), target=(10.0, 5.0))
@@ -191,7 +192,7 @@ def test_the_eased_background_keeps_every_boundary_condition():
 def test_near_mask_is_exact_at_pixel_centres_and_across_the_seam():
     from scipy.spatial import cKDTree
 
-    from omniwidget.core import coords
+    from omniwidget.sphere import coords
 
     rng = np.random.default_rng(2)
     points = np.concatenate([rng.uniform([-180, -90], [180, 90], (40, 2)), [[179.9, 10.0], [0.0, 90.0], [-180.0, -60.0]]])

@@ -1,4 +1,4 @@
-"""The package's structure: no import cycle between its modules, no private name used across modules.
+"""The package's structure: layers that import only downwards, no import cycle, no private name used across modules.
 
 Read from the source (every ``import`` statement, at module level or inside a function,
 since a lazy import is a dependency all the same; imports under ``TYPE_CHECKING`` are for
@@ -100,8 +100,8 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_the_checks_see_the_package():
     graph = _graph()
-    assert {"omniwidget.core.pipeline", "omniwidget.widget.editor", "omniwidget.session"} <= set(graph)
-    assert "omniwidget.core.constraints" in graph["omniwidget.core.pipeline"]  # relative imports are resolved
+    assert {"omniwidget.raster.pipeline", "omniwidget.widget.editor", "omniwidget.app.session"} <= set(graph)
+    assert "omniwidget.method.constraints" in graph["omniwidget.raster.pipeline"]  # relative imports are resolved
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]  # and a cycle is found
 
 
@@ -117,3 +117,70 @@ def test_no_private_name_is_imported_from_another_module():
         if what is not None and what.startswith("_") and not what.startswith("__") and imported.startswith("omniwidget")
     ]
     assert used == []
+
+
+#: The layers from the bottom up (README, Layout): a module imports its own layer and the ones below.
+LAYERS: list[tuple[str, tuple[str, ...]]] = [
+    (
+        "plumbing",
+        (
+            "omniwidget._version",
+            "omniwidget.errors",
+            "omniwidget._checks",
+            "omniwidget._files",
+            "omniwidget._timing",
+            "omniwidget._native",
+            "omniwidget._numba_kernels",
+        ),
+    ),
+    ("sphere", ("omniwidget.sphere",)),
+    ("document", ("omniwidget.document",)),
+    ("method", ("omniwidget.method",)),
+    ("raster", ("omniwidget.raster",)),
+    ("evaluate", ("omniwidget.evaluate",)),
+    ("io", ("omniwidget.io", "omniwidget.data")),
+    ("app", ("omniwidget.app",)),
+    ("widget and pane", ("omniwidget.widget", "omniwidget.viz", "omniwidget.__main__")),
+    ("the package's names", ("omniwidget",)),
+]
+
+#: Imports upwards that are allowed, each inside a function and for a reason.
+UPWARDS = {
+    ("omniwidget.raster.pipeline", "omniwidget.evaluate.quality"): "Result.quality measures a warp when first asked",
+}
+
+
+def _layer(module: str) -> int:
+    """Index in :data:`LAYERS` of the longest prefix that owns ``module``."""
+    best, owner = -1, ""
+    for i, (_, prefixes) in enumerate(LAYERS):
+        for prefix in prefixes:
+            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > len(owner):
+                best, owner = i, prefix
+    return best
+
+
+def test_every_module_has_a_layer():
+    assert [m for m in MODULES if _layer(m) < 0] == []
+    assert _layer("omniwidget.method.bbw") == 3 and _layer("omniwidget.errors") == 0 and _layer("omniwidget") == len(LAYERS) - 1
+
+
+def test_no_layer_imports_a_layer_above_it():
+    upward = [
+        f"{name} ({LAYERS[_layer(name)][0]}) imports {target} ({LAYERS[_layer(target)][0]})"
+        for name, targets in _graph().items()
+        for target in sorted(targets)
+        if _layer(target) > _layer(name) and (name, target) not in UPWARDS
+    ]
+    assert upward == []
+
+
+def test_the_sphere_document_and_method_layers_import_nothing_above_them_at_all():
+    """The paper's maths can be read without the engine, the figures or the apps: not even a lazy import upwards."""
+    method = _layer("omniwidget.method")
+    assert [(a, b) for a, b in UPWARDS if _layer(a) <= method] == []
+
+
+def test_the_layer_check_catches_an_upward_import(tmp_path):
+    graph = {"omniwidget.sphere.coords": {"omniwidget.raster.pipeline"}}
+    assert [t for n, ts in graph.items() for t in ts if _layer(t) > _layer(n)] == ["omniwidget.raster.pipeline"]

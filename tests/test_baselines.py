@@ -1,4 +1,4 @@
-"""The paper's comparison methods (omniwidget.core.baselines) measured against its own on synthetic rooms.
+"""The paper's comparison methods (omniwidget.evaluate.baselines) measured against its own on synthetic rooms.
 
 The figures each test measures are in its assertion messages and printed (pytest -s), e.g.
 ``BBW folds 0.000% tear 0.31 px straight 0.08 px``.
@@ -9,8 +9,10 @@ import warnings
 import numpy as np
 import pytest
 
-from omniwidget.core import coords, scenes
-from omniwidget.core.baselines import (
+from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.errors import ImageError
+from omniwidget.evaluate import scenes
+from omniwidget.evaluate.baselines import (
     BaselineResult,
     Comparison,
     PerspectiveView,
@@ -20,11 +22,10 @@ from omniwidget.core.baselines import (
     piecewise_constant,
     single_moebius,
 )
-from omniwidget.core.errors import ImageError
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.pipeline import Result, warp
-from omniwidget.core.quality import coverage, straightness, tear
-from omniwidget.core.scenes import mark_lines, synthetic_room
+from omniwidget.evaluate.quality import coverage, straightness, tear
+from omniwidget.evaluate.scenes import mark_lines, synthetic_room
+from omniwidget.raster.pipeline import Result, warp
+from omniwidget.sphere import coords
 
 W = 512
 

@@ -1,7 +1,7 @@
 """Bounded biharmonic weights: discrete operators, the box-constrained solver, and libigl as the reference.
 
 The meshes are built here (an icosphere by 1-to-4 subdivision, and the convex hull of
-random points on the sphere), independently of :mod:`omniwidget.core.mesh`.
+random points on the sphere), independently of :mod:`omniwidget.method.mesh`.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import ConvexHull
 
-from omniwidget.core import bbw as bbw_module
-from omniwidget.core.bbw import bbw, bilaplacian, cotangent_laplacian, mass_matrix, normalize_rows
+from omniwidget.method import bbw as bbw_module
+from omniwidget.method.bbw import bbw, bilaplacian, cotangent_laplacian, mass_matrix, normalize_rows
 
 #: Our weights against ``igl.bbw`` (libigl stops after 100 iterations; it converges well before on these
 #: meshes). Measured 6.3e-14 (icosphere3, lines) to 1.3e-10 (hull700, cage: the worst conditioned), 1.1e-12
@@ -227,7 +227,7 @@ def test_bbw_bounds_constraints_and_optimality(mesh, layout):
 @pytest.mark.parametrize("mesh", sorted(MESHES))
 @pytest.mark.parametrize("layout", ["points", "lines", "cage"])
 def test_bbw_matches_libigl(mesh, layout):
-    from omniwidget.core._igl import igl_bbw
+    from omniwidget.method._igl import igl_bbw
 
     pytest.importorskip("igl")
     v, f = MESHES[mesh]()
@@ -240,7 +240,7 @@ def test_bbw_matches_libigl(mesh, layout):
 
 
 def test_bbw_matches_libigl_through_three_levels():
-    from omniwidget.core._igl import igl_bbw
+    from omniwidget.method._igl import igl_bbw
 
     pytest.importorskip("igl")
     v, f = icosphere(4)
@@ -450,7 +450,7 @@ def test_normalize_rows_empty_rows_become_uniform():
 # --- the libigl wrapper --------------------------------------------------------------------------------
 def test_igl_bbw_coerces_dtypes_and_layout():
     pytest.importorskip("igl")
-    from omniwidget.core._igl import igl_bbw, igl_version
+    from omniwidget.method._igl import igl_bbw, igl_version
 
     v, f = icosphere(2)
     b, bc = point_layout(v, 4, seed=1)
@@ -492,7 +492,7 @@ class _FakeIgl25:
 
 @pytest.mark.parametrize("fake", [_FakeIgl26, _FakeIgl25])
 def test_igl_bbw_speaks_both_binding_apis(monkeypatch, fake):
-    from omniwidget.core import _igl
+    from omniwidget.method import _igl
 
     module = fake()
     monkeypatch.setitem(sys.modules, "igl", module)
@@ -508,7 +508,7 @@ def test_igl_bbw_speaks_both_binding_apis(monkeypatch, fake):
 
 
 def test_igl_missing_says_how_to_install(monkeypatch):
-    from omniwidget.core import _igl
+    from omniwidget.method import _igl
 
     monkeypatch.setitem(sys.modules, "igl", None)  # makes `import igl` raise ImportError
     v, f = icosphere(1)

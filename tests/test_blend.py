@@ -5,14 +5,15 @@ import warnings
 import numpy as np
 import pytest
 
-from omniwidget.core import bbw as bbw_module
-from omniwidget.core import coords
-from omniwidget.core.bbw import normalize_rows
-from omniwidget.core.handles import SUGGESTED_ANCHOR, CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.mesh import icosphere
-from omniwidget.core.pipeline import FOLD_WARNING_AREA, BlendWarning, ease_background, warp
-from omniwidget.core.quality import cage_motion, coverage, straightness
-from omniwidget.core.scenes import mark_lines, synthetic_room
+from omniwidget.document.handles import SUGGESTED_ANCHOR, CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.evaluate.quality import cage_motion, coverage, straightness
+from omniwidget.evaluate.scenes import mark_lines, synthetic_room
+from omniwidget.method import bbw as bbw_module
+from omniwidget.method.background import ease_background
+from omniwidget.method.bbw import normalize_rows
+from omniwidget.method.mesh import icosphere
+from omniwidget.raster.pipeline import FOLD_WARNING_AREA, BlendWarning, warp
+from omniwidget.sphere import coords
 
 W = 2048
 
@@ -107,7 +108,7 @@ def test_rooms_with_lines_only_and_their_fold_overs_reported(seed, n_lines, anch
 
 
 def test_weights_match_libigl_on_the_pipelines_mesh():
-    from omniwidget.core._igl import igl_bbw
+    from omniwidget.method._igl import igl_bbw
 
     pytest.importorskip("igl")
     scene, lines = _room_scene(1, 6, KEEP_CLEAR)

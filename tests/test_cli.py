@@ -8,10 +8,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from omniwidget.cli import main
-from omniwidget.core import coords
-from omniwidget.core.io import read_image, write_image
-from omniwidget.core.moebius import Moebius
+from omniwidget.app.cli import main
+from omniwidget.io.images import read_image, write_image
+from omniwidget.sphere import coords
+from omniwidget.sphere.moebius import Moebius
 
 POINT = {
     "format": "omniwidget.handles",
@@ -274,7 +274,7 @@ def test_many_frames_refuse_what_would_lose_work(files, frames, capsys):
 
 
 def test_progress_is_reported_frame_by_frame(files, frames):
-    from omniwidget.core.frames import map_coordinates, warp_frames
+    from omniwidget.io.frames import map_coordinates, warp_frames
 
     calls = []
     inverse = np.stack(np.meshgrid(*coords.grid_lonlat(256)), axis=-1)

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
+from omniwidget.sphere import coords
 
 from .conftest import random_lonlat
 

@@ -1,6 +1,6 @@
 """Issue 17: what you mark is what you get in the default mode (the still background), on generated scenes.
 
-Every scene comes from :func:`omniwidget.core.scenes.family_scene`. The constants of the
+Every scene comes from :func:`omniwidget.evaluate.scenes.family_scene`. The constants of the
 default mode were chosen on the even seeds (``python bench/bench_default.py --half choose``);
 these tests use odd seeds only, the half that took no part in the choice. Figures are
 asserted at 2048 x 1024, the width the issue states them at.
@@ -13,13 +13,14 @@ import warnings
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
-from omniwidget.core.constraints import LINE_TOLERANCE, build_constraints, split_line
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.moebius import Moebius
-from omniwidget.core.pipeline import warp
-from omniwidget.core.quality import cage_fidelity, inside_polygon, point_fidelity, straightness
-from omniwidget.core.scenes import family_scene
+from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.evaluate.quality import cage_fidelity, point_fidelity, straightness
+from omniwidget.evaluate.scenes import family_scene
+from omniwidget.method.constraints import LINE_TOLERANCE, build_constraints, split_line
+from omniwidget.raster.pipeline import warp
+from omniwidget.sphere import coords
+from omniwidget.sphere.arcs import inside_polygon
+from omniwidget.sphere.moebius import Moebius
 
 W = 2048
 T = np.linspace(0.0, 1.0, 50)
@@ -101,7 +102,7 @@ def test_the_issues_large_cage_moves_its_centre_with_it():
 
 
 def test_the_pane_shows_a_cage_with_weight_1_inside():
-    from omniwidget.pane import handle_weights
+    from omniwidget.viz.pane import handle_weights
 
     scene, doc, truth = family_scene("cage_large", 3, 1024)
     result = _warp(scene.image, doc)

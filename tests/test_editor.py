@@ -10,9 +10,9 @@ import pytest
 pytest.importorskip("anywidget")
 
 import omniwidget as ow  # noqa: E402
-from omniwidget.core import pipeline  # noqa: E402
-from omniwidget.core.handles import PointHandle  # noqa: E402
-from omniwidget.core.quality import line_straightness  # noqa: E402
+from omniwidget.document.handles import PointHandle  # noqa: E402
+from omniwidget.evaluate.quality import line_straightness  # noqa: E402
+from omniwidget.raster import pipeline  # noqa: E402
 from omniwidget.widget import Editor, saved_handles  # noqa: E402
 from omniwidget.widget.editor import DISPLAY_WIDTH, HISTORY  # noqa: E402
 
@@ -134,7 +134,7 @@ def test_outputs_follow_the_handles(editor):
     (ax, ay), (bx, by) = least[1] - least[0], least[2] - least[0]
     assert abs(ax * by - ay * bx) < 1e-7 * np.hypot(bx, by) ** 2  # to 1e-5 degrees: eq. (9) is stiff, not exact
     inputs = ow.LineHandle(tuple(WINDOW_TOP["start"]), tuple(WINDOW_TOP["end"])).control_points()
-    moved = lambda out: ow.core.coords.angular_distance(out, inputs).max()  # noqa: E731
+    moved = lambda out: ow.sphere.coords.angular_distance(out, inputs).max()  # noqa: E731
     assert moved(least) < 0.8 * moved(paper), (moved(least), moved(paper))
 
 
@@ -189,7 +189,7 @@ def test_rectify_all_makes_the_drawn_line_straight(editor):
     changed = np.abs(after.astype(int) - before.astype(int)).max(axis=2) > 40
     assert changed[40:160, 480:720].mean() > 0.02  # about the window's top edge
     result = editor.result
-    samples = ow.core.coords.geodesic(line.start, line.end, np.linspace(0, 1, 60))
+    samples = ow.sphere.coords.geodesic(line.start, line.end, np.linspace(0, 1, 60))
     bent = line_straightness(pipeline.warp(ow.sample_image(), ow.Handles()).inverse_map(np.float64), samples)
     straight = line_straightness(result.inverse_map(np.float64), samples, start=result.controls[0].moebius(samples))
     assert bent > 5.0 and straight < 0.3
@@ -304,7 +304,7 @@ def test_a_line_over_a_pole_kept_as_it_is_is_listed_in_the_status_and_not_as_a_c
     (warning,) = [w for w in status["warnings"] if w.startswith("handles[2] (line) passes 0.0° from the north pole")]
     assert "it is kept as it is" in warning
     assert 2 not in status["conflicts"]  # drawn as kept, not as a conflict
-    assert ow.core.coords.angular_distance(editor.outputs[2], editor.document.handles[2].control_points()).max() < 1e-6  # kept
+    assert ow.sphere.coords.angular_distance(editor.outputs[2], editor.document.handles[2].control_points()).max() < 1e-6  # kept
     assert all(c.moebius.is_identity() for c in editor.preview_result.controls if c.handle == 2)
     # the south pole too, and indices follow the document
     editor.handles = doc({"kind": "line", "start": [-40.0, -70.0], "end": [140.0, -75.0]}, near)
@@ -355,8 +355,8 @@ def test_outputs_of_lines_split_at_a_crossing_come_from_their_pieces(editor):
     assert len([c for c in editor.preview_result.controls if c.handle >= 0]) == 4  # each line split in two at the crossing
     for h, out in zip((a, b), editor.outputs, strict=True):
         assert np.isfinite(out).all() and len(out) == 3
-        assert ow.core.coords.angular_distance(out[0], h["start"]) < 1.0
-        assert ow.core.coords.angular_distance(out[2], h["end"]) < 1.0
+        assert ow.sphere.coords.angular_distance(out[0], h["start"]) < 1.0
+        assert ow.sphere.coords.angular_distance(out[2], h["end"]) < 1.0
 
 
 def test_a_refused_command_while_computing_keeps_the_result_coming(editor, monkeypatch):
@@ -562,16 +562,16 @@ def _raise(exc):
 @pytest.mark.parametrize(
     ("targets", "exc", "shown"),
     [
-        (["omniwidget.core.pipeline.build_constraints"], ValueError("the constraints are inconsistent"), "ValueError: the constraints"),
-        (["omniwidget.core.mesh.adaptive_mesh"], MemoryError(), "MemoryError: out of memory"),
-        (["omniwidget.core.bbw.bbw"], np.linalg.LinAlgError("Singular matrix"), "LinAlgError: Singular matrix"),
+        (["omniwidget.method.deformation.build_constraints"], ValueError("the constraints are inconsistent"), "ValueError: the constraints"),
+        (["omniwidget.method.deformation.adaptive_mesh"], MemoryError(), "MemoryError: out of memory"),
+        (["omniwidget.method.bbw.bbw"], np.linalg.LinAlgError("Singular matrix"), "LinAlgError: Singular matrix"),
         (
-            ["omniwidget.core._kernels.walk_blend", "omniwidget.core.sampled.sampled_coordinates", "omniwidget.core.blend.blended_inverse"],
+            ["omniwidget.raster._kernels.walk_blend", "omniwidget.raster.pipeline.sampled_coordinates", "omniwidget.raster.pipeline.blended_inverse"],
             FloatingPointError("overflow encountered in the blend"),
             "FloatingPointError: overflow encountered in the blend",
         ),
-        (["omniwidget.core.pipeline.remap"], RuntimeError(), "(RuntimeError)"),
-        (["omniwidget.session._jpeg"], ow.ImageError("could not encode the image for display"), "ImageError: could not encode"),
+        (["omniwidget.raster.pipeline.remap"], RuntimeError(), "(RuntimeError)"),
+        (["omniwidget.app.session._jpeg"], ow.ImageError("could not encode the image for display"), "ImageError: could not encode"),
     ],
     ids=["constraints", "mesh", "solver", "blend", "resampling", "display"],
 )
@@ -601,7 +601,7 @@ def test_an_error_anywhere_in_the_computation_is_shown_and_the_next_edit_recover
 
 @pytest.mark.parametrize("where", ["image", "outputs"])
 def test_a_result_that_is_not_finite_is_refused_like_an_error(monkeypatch, where):
-    from omniwidget import session as module
+    from omniwidget.app import session as module
 
     image = ow.sample_image().astype(np.float32) / 255
     ed = Editor(image, doc(WINDOW_TOP, POINT), autosave=False)
@@ -644,7 +644,7 @@ def test_a_bad_edit_from_the_front_end_is_refused_with_a_message_and_changes_not
 
 
 def test_a_job_that_raises_does_not_stop_the_worker(caplog):
-    from omniwidget._latest import Latest
+    from omniwidget.app._latest import Latest
 
     worker, done = Latest("test-worker"), []
     worker.submit(_raise(RuntimeError("a bug")))
@@ -726,7 +726,7 @@ def test_save_image_keeps_a_jpegs_format_and_its_pixels_are_the_encoders_own(roo
 
 
 def test_save_image_falls_back_to_png_when_the_inputs_format_cannot_hold_the_result(tmp_path, monkeypatch):
-    from omniwidget.session import _result_location
+    from omniwidget.app.session import _result_location
 
     rgba = np.zeros((4, 8, 4), np.uint8)
     assert _result_location(tmp_path / "room.jpg", rgba) == tmp_path / "room-rectified.png"  # alpha in a JPEG

@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 
 import omniwidget as ow
-from omniwidget.core import coords
-from omniwidget.core.handles import PointHandle
+from omniwidget.document.handles import PointHandle
+from omniwidget.sphere import coords
 from omniwidget.widget import saved_handles
 from tests import browser_harness as bh
 
@@ -128,7 +128,7 @@ def test_draw_rectify_turn_undo(jupyter_server, browser):
         straightness = float(
             bh.run_in_kernel(
                 client,
-                "import numpy as np\nfrom omniwidget.core import coords\nfrom omniwidget.core.quality import line_straightness\n"
+                "import numpy as np\nfrom omniwidget.sphere import coords\nfrom omniwidget.evaluate.quality import line_straightness\n"
                 "r = ed.result\nh = ed.document.handles[0]\ns = coords.geodesic(h.start, h.end, np.linspace(0, 1, 60))\n"
                 "print(line_straightness(r.inverse_map(np.float64), s, start=r.controls[0].moebius(s)))",
             )
@@ -203,7 +203,7 @@ def test_draw_rectify_turn_undo(jupyter_server, browser):
         bh.run_in_kernel(
             client,
             f"import sys\nsys.path.insert(0, {str(REPO / 'bench')!r})\nfrom bench_blend import build_scene\n"
-            "from dataclasses import replace\nfrom omniwidget.core.handles import Options, PointHandle\n"
+            "from dataclasses import replace\nfrom omniwidget.document.handles import Options, PointHandle\n"
             "_, scene = build_scene(20240611)\ned.handles = replace(scene, options=Options(rectify='all'))\n"
             "points = [i for i, h in enumerate(ed.document.handles) if isinstance(h, PointHandle)]",
         )
@@ -248,7 +248,7 @@ def test_draw_rectify_turn_undo(jupyter_server, browser):
 
 
 PANE_NOTEBOOK = [
-    "import json\nimport omniwidget as ow\nfrom omniwidget.cli import DEMO_HANDLES\n\n"
+    "import json\nimport omniwidget as ow\nfrom omniwidget.app.cli import DEMO_HANDLES\n\n"
     "ed = ow.Editor(ow.sample_path(), handles=DEMO_HANDLES, height=360)\ned",
     "from omniwidget import pane\n\nweights = pane.WeightsPane(ed, window_size=(420, 420))\nweights",
 ]
@@ -337,7 +337,7 @@ RESTART_NOTEBOOK = [
 
 BREAK_SOLVER = """
 import numpy as np
-import omniwidget.core.bbw as _bbw
+import omniwidget.method.bbw as _bbw
 
 _solve = _bbw.bbw
 
@@ -452,7 +452,8 @@ def test_a_kernel_error_mid_edit_and_a_kernel_restart_lose_no_handles(jupyter_se
 MAGNIFICATION = """
 import math
 import numpy as np
-from omniwidget.core import coords, quality
+from omniwidget.sphere import coords
+from omniwidget.evaluate import quality
 
 def _frame(lonlat):  # rows: the unit vector and its east and north directions
     east, north = coords.local_frame(lonlat)
@@ -548,7 +549,7 @@ def test_a_large_cage_dragged_carries_its_inside_rigidly(jupyter_server, browser
         wait_idle(nb, kernel_json(client, "ed.session.generation") - 1, "the result with the cage moved")
         bh.run_in_kernel(
             client,
-            "import numpy as np\nfrom omniwidget.core import coords, quality\n"
+            "import numpy as np\nfrom omniwidget.sphere import coords\nfrom omniwidget.evaluate import quality\n"
             "r, c = ed.result, ed.document.handles[1]\n"
             "R = c.rotation()  # the cage's best rotation: its motion\n"
             "turned = coords.xyz_to_lonlat(coords.lonlat_to_xyz(np.asarray(c.vertices)) @ R.T)\n"
@@ -619,7 +620,7 @@ SAVE_IMAGE_NOTEBOOK = [
 
 
 def test_save_image_writes_the_full_size_result_and_downloads_it(jupyter_server, browser):
-    from omniwidget.core import pipeline
+    from omniwidget.raster import pipeline
 
     folder = jupyter_server.root / "save_image"
     folder.mkdir(exist_ok=True)

@@ -1,7 +1,7 @@
 """The result follows the mouse: a live drag in a real browser (JupyterLab and Notebook 7, Debian's Chromium, WebGL2 in software).
 
 While a control point is dragged on the result, the browser redraws the result every frame
-from the kernel's basis (:mod:`omniwidget.core.live`) and the handle's maps rebuilt in
+from the kernel's basis (:mod:`omniwidget.raster.live`) and the handle's maps rebuilt in
 JavaScript (``moebius.js``, checked against Python by ``tests/test_moebius_js.py``); on
 release the kernel's exact result replaces it.
 

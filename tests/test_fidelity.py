@@ -10,11 +10,12 @@ import warnings
 import numpy as np
 import pytest
 
-from omniwidget.core import coords, quality
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.moebius import Moebius
-from omniwidget.core.pipeline import warp
-from omniwidget.core.scenes import FAMILIES, family_scene, synthetic_room
+from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.evaluate import quality
+from omniwidget.evaluate.scenes import FAMILIES, family_scene, synthetic_room
+from omniwidget.raster.pipeline import warp
+from omniwidget.sphere import arcs, coords
+from omniwidget.sphere.moebius import Moebius
 
 W = 512
 PAPER = Options(anchor=None)
@@ -132,7 +133,7 @@ def test_cage_fidelity_of_a_rigid_map_is_zero_and_of_a_wrong_motion_is_its_dista
     assert quality.cage_fidelity(result, 0, r) < 1e-9
     assert quality.cage_fidelity(result, 0) < 1e-9  # Kabsch finds R from the vertices
     # measured against staying still: the shift of 4 degrees of longitude, largest where |lat| is smallest inside
-    inside = quality.inside_polygon(q, targets)
+    inside = arcs.inside_polygon(q, targets)
     expected = 2 * np.degrees(np.arcsin(np.cos(np.radians(q[inside][:, 1])) * math.sin(math.radians(2.0)))).max() * W / 360
     assert quality.cage_fidelity(result, 0, np.eye(3)) == pytest.approx(expected, rel=1e-9)
     assert expected == pytest.approx(4.0 * W / 360, rel=2e-3)
@@ -359,12 +360,12 @@ def test_families_make_the_scenes_they_promise(family, quarter):
             for marked in truth["lines"]:
                 assert _min_distance(_line_cloud(marked), edges) >= gap - 0.05, (family, seed)
                 for polygon in (cage.vertices, cage.finals):
-                    assert not quality.inside_polygon(_line_cloud(marked), polygon).any()
+                    assert not arcs.inside_polygon(_line_cloud(marked), polygon).any()
             if family == "cage_fixed":
                 assert _min_distance(_line_cloud(truth["lines"][0]), edges) <= 15.0 + 0.05
             for p in points:
                 for polygon in (cage.vertices, cage.finals):
-                    assert not quality.inside_polygon(np.array([p.position, p.final]), polygon).any()
+                    assert not arcs.inside_polygon(np.array([p.position, p.final]), polygon).any()
                 assert _min_distance(np.array([p.position, p.final]), edges) >= 10.0 - 0.05
         assert (1 if family == "mixed" else 0) <= len(points) <= {"points": 3, "mixed": 2}.get(family, 0)
         if family == "points":

@@ -7,9 +7,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from omniwidget.core import coords
-from omniwidget.core.errors import HandlesError
-from omniwidget.core.handles import ARROW_LENGTH, CageHandle, Handles, LineHandle, PointHandle, load_handles, save_handles
+from omniwidget.document.handles import ARROW_LENGTH, CageHandle, Handles, LineHandle, PointHandle, load_handles, save_handles
+from omniwidget.errors import HandlesError
+from omniwidget.sphere import coords
 
 DOC = {
     "format": "omniwidget.handles",

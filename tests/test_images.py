@@ -20,14 +20,14 @@ import numpy as np
 import pytest
 
 from omniwidget import to_equirectangular
-from omniwidget.cli import main
-from omniwidget.core import coords
-from omniwidget.core.errors import ImageError
-from omniwidget.core.handles import Handles
-from omniwidget.core.io import check_panorama, read_image, write_image
-from omniwidget.core.moebius import Moebius
-from omniwidget.core.pipeline import warp
-from omniwidget.core.warping import pad_panorama, warp_moebius
+from omniwidget.app.cli import main
+from omniwidget.document.handles import Handles
+from omniwidget.errors import ImageError
+from omniwidget.io.images import check_panorama, read_image, write_image
+from omniwidget.raster.pipeline import warp
+from omniwidget.raster.warping import pad_panorama, warp_moebius
+from omniwidget.sphere import coords
+from omniwidget.sphere.moebius import Moebius
 
 # the paper's method (no still background): each point moves the whole image, visibly
 PAPER = {"anchor": None}
@@ -385,7 +385,7 @@ def test_outputs_that_cannot_hold_the_image_are_refused_before_the_work(tmp_path
     def no_warp(*args, **kwargs):
         raise AssertionError("the warp ran")
 
-    monkeypatch.setattr("omniwidget.core.pipeline.warp", no_warp)
+    monkeypatch.setattr("omniwidget.raster.pipeline.warp", no_warp)
     cases = {
         "rgba.png": ("out.jpg", "out.jpg: JPEG has no alpha channel; write .png, .tif, .webp or .npy to keep it"),
         "deep.png": ("out.jpg", "out.jpg: cannot write a uint16 image as .jpg (use .png, .tif, .tiff, .npy)"),
@@ -527,7 +527,7 @@ def test_a_failed_run_leaves_an_existing_output_and_the_input_untouched(tmp_path
     def disk_full(path, data):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr("omniwidget.core.io.atomic_write_bytes", disk_full)  # the write fails after the warp
+    monkeypatch.setattr("omniwidget.io.images.atomic_write_bytes", disk_full)  # the write fails after the warp
     assert main(["warp", str(tmp_path / "in.png"), "-H", str(tmp_path / "h.json"), *argv]) == 2
     monkeypatch.undo()
     monkeypatch.setattr(cv2, "imencode", lambda *a: (False, None) if a[0] == ".png" else real_imencode(*a))  # encoding fails
@@ -560,11 +560,11 @@ BIG = textwrap.dedent(
     """
     import json, resource, sys
     import cv2, numpy as np
-    from omniwidget.cli import main
-    from omniwidget.core import _kernels
-    from omniwidget.core.handles import Handles
-    from omniwidget.core.io import read_image, write_image
-    from omniwidget.core.pipeline import warp
+    from omniwidget.app.cli import main
+    from omniwidget.raster import _kernels
+    from omniwidget.document.handles import Handles
+    from omniwidget.io.images import read_image, write_image
+    from omniwidget.raster.pipeline import warp
 
     folder, handles = sys.argv[1], json.loads(sys.argv[2])
     h, w = 6000, 12000
@@ -599,7 +599,7 @@ BIG = textwrap.dedent(
 @pytest.mark.slow  # a 12000 x 6000 warp in a process of its own
 def test_a_12000_by_6000_panorama_warps_within_4_gb(tmp_path):
     """The command line on a 12000 x 6000 JPEG with four handles, in a process of its own (its peak is its own)."""
-    from omniwidget.core import _kernels
+    from omniwidget.raster import _kernels
 
     if not _kernels.available():
         pytest.skip("the memory target is the compiled kernels' (the fast extra); the numpy path needs more")

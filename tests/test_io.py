@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from omniwidget.core.errors import ImageError
-from omniwidget.core.io import atomic_write_bytes, read_image, write_image
+from omniwidget.errors import ImageError
+from omniwidget.io.images import atomic_write_bytes, read_image, write_image
 
 
 @pytest.mark.parametrize(
@@ -53,7 +53,7 @@ def full_disk(monkeypatch):
     def failing_replace(src, dst):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr("omniwidget.core.io.os.replace", failing_replace)
+    monkeypatch.setattr("omniwidget._files.os.replace", failing_replace)
 
 
 def test_atomic_write_leaves_the_old_file_when_writing_fails(tmp_path, full_disk):

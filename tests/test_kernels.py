@@ -5,14 +5,15 @@ import warnings
 import numpy as np
 import pytest
 
-from omniwidget.core import _kernels, coords
-from omniwidget.core.blend import blended_inverse, mesh_pixel_weights
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.locate import barycentric, locate_faces, locate_grid
-from omniwidget.core.pipeline import warp
-from omniwidget.core.quality import fold_over
-from omniwidget.core.scenes import mark_lines, synthetic_room
-from omniwidget.core.warping import PAD, remap_coordinates
+from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.evaluate.quality import fold_over
+from omniwidget.evaluate.scenes import mark_lines, synthetic_room
+from omniwidget.method.locate import barycentric, locate_faces, locate_grid
+from omniwidget.raster import _kernels
+from omniwidget.raster.blend import blended_inverse, mesh_pixel_weights
+from omniwidget.raster.pipeline import warp
+from omniwidget.raster.warping import PAD, remap_coordinates
+from omniwidget.sphere import coords
 
 pytestmark = pytest.mark.skipif(not _kernels.available(), reason="numba is not installed (pip install numba)")
 
@@ -126,7 +127,7 @@ def test_painting_and_strongest_weights_match_numpy(room, monkeypatch):
     rows, cols = np.nonzero(mask)
     lon, lat = coords.grid_lonlat(W)
     at = barycentric(planes, face[rows, cols], coords.lonlat_to_xyz(np.stack([lon[cols], lat[rows]], axis=-1)))
-    from omniwidget.core.locate import interpolate
+    from omniwidget.method.locate import interpolate
 
     expected = interpolate(result.weights, result.faces, face[rows, cols], at).max(axis=0)
     np.testing.assert_allclose(_kernels.strongest_weights(mask, face, planes, result.faces, result.weights), expected, atol=1e-12)
@@ -135,9 +136,9 @@ def test_painting_and_strongest_weights_match_numpy(room, monkeypatch):
 _FRESH_WARP = """
 import json, warnings
 warnings.simplefilter("ignore")
-from omniwidget.core import _numba_kernels as k
-from omniwidget.core.scenes import family_scene
-from omniwidget.core.pipeline import warp
+from omniwidget import _numba_kernels as k
+from omniwidget.evaluate.scenes import family_scene
+from omniwidget.raster.pipeline import warp
 scene, doc, _ = family_scene("mixed", 1, 2048)
 warp(scene.image, doc)
 kernels = [f for f in vars(k).values() if hasattr(f, "stats")]

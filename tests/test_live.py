@@ -1,4 +1,4 @@
-"""The live drag's basis (omniwidget.core.live): eq. (2) split so that the browser redoes it per frame.
+"""The live drag's basis (omniwidget.raster.live): eq. (2) split so that the browser redoes it per frame.
 
 The browser's per-pixel sum is :meth:`LiveBasis.inverse_lonlat`; here it is checked against
 the kernel's own blend, with the maps the result has and with new maps where the weights
@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 import omniwidget as ow
-from omniwidget.core import _kernels, coords
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.live import REGION_WEIGHT, live_basis
-from omniwidget.core.pipeline import warp
+from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.raster import _kernels
+from omniwidget.raster.live import REGION_WEIGHT, live_basis
+from omniwidget.raster.pipeline import warp
+from omniwidget.sphere import coords
 from tests.conftest import offset
 
 WIDTH = 256
@@ -129,7 +130,7 @@ def test_a_handle_without_a_control_is_refused(image):
 
 
 def test_the_session_sends_the_basis_and_solves_a_drag_without_an_edit():
-    from omniwidget.session import EditingSession
+    from omniwidget.app.session import EditingSession
 
     sent = []
     session = EditingSession(

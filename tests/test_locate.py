@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from omniwidget.core import coords
-from omniwidget.core.locate import interpolate, locate_grid, locate_points
+from omniwidget.method.locate import interpolate, locate_grid, locate_points
+from omniwidget.sphere import coords
 
 # --- meshes of the unit sphere, built here -------------------------------------------------
 
@@ -210,7 +210,7 @@ def test_grid_pixels_on_vertices_and_edges():
 
 
 def test_grid_pixels_missed_by_the_runs_are_located_one_by_one(monkeypatch):
-    import omniwidget.core.locate as locate
+    import omniwidget.method.locate as locate
 
     runs = locate._runs
 
@@ -362,6 +362,6 @@ def test_rejects_bad_widths_and_directions():
 
 
 def test_import_does_not_load_scipy():
-    code = "import sys, omniwidget.core.locate; print('scipy' in sys.modules)"
+    code = "import sys, omniwidget.method.locate; print('scipy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "False"

@@ -7,8 +7,8 @@ import sys
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
-from omniwidget.core.mesh import MERGE_CHORD, SphereMesh, adaptive_mesh, default_thresholds, icosphere, triangle_angles
+from omniwidget.method.mesh import MERGE_CHORD, SphereMesh, adaptive_mesh, default_thresholds, icosphere, triangle_angles
+from omniwidget.sphere import coords
 
 #: Smallest triangle angle (degrees) accepted for realistic sample sets: lines of 50 samples
 #: at least ~20 degrees long. Measured: 7.5 degrees for the twelve-handle scene below.
@@ -363,6 +363,6 @@ def test_bad_input_is_rejected_with_a_clear_message(samples, kwargs, match):
 
 
 def test_importing_the_module_does_not_load_scipy():
-    code = "import sys, omniwidget.core.mesh; print('scipy' in sys.modules)"
+    code = "import sys, omniwidget.method.mesh; print('scipy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "False"

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
-from omniwidget.core.moebius import Moebius
-from omniwidget.core.warping import grid_inverse, inverse_lonlat
+from omniwidget.raster.warping import grid_inverse, inverse_lonlat
+from omniwidget.sphere import coords
+from omniwidget.sphere.moebius import Moebius
 
 from .conftest import random_lonlat
 

@@ -78,7 +78,7 @@ def test_the_quickstart_editor_autosaves_by_default_into_the_notebooks_folder(ex
     executed(path)
     saved = sorted(FOLDERS[path.name].glob(f"hotel_room-*{AUTOSAVE_SUFFIX}"))
     assert len(saved) == 1, sorted(p.name for p in FOLDERS[path.name].iterdir())
-    from omniwidget.cli import DEMO_HANDLES
+    from omniwidget.app.cli import DEMO_HANDLES
 
     # the notebook sets the demo's handles, undoes and redoes: the autosave holds them
     assert ow.load_handles(saved[0]).to_dict() == ow.Handles.from_dict(DEMO_HANDLES).to_dict()

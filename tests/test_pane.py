@@ -8,13 +8,13 @@ import warnings
 import numpy as np
 import pytest
 
-# no environment set here: omniwidget.pane itself chooses EGL where there is no display (the test below)
+# no environment set here: omniwidget.viz.pane itself chooses EGL where there is no display (the test below)
 pv = pytest.importorskip("pyvista")
 
 import omniwidget as ow  # noqa: E402
-from omniwidget import pane  # noqa: E402
-from omniwidget.core import coords  # noqa: E402
-from omniwidget.core.constraints import build_constraints  # noqa: E402
+from omniwidget.method.constraints import build_constraints  # noqa: E402
+from omniwidget.sphere import coords  # noqa: E402
+from omniwidget.viz import pane  # noqa: E402
 
 POINT = {"kind": "point", "position": [120.0, 0.0], "target": [125.0, 5.0], "scale": 1.5}
 SCENE = {
@@ -37,7 +37,7 @@ def test_importing_the_pane_without_a_display_chooses_egl():
     In a fresh process without ``DISPLAY``/``WAYLAND_DISPLAY``: set to EGL on import; one given is kept.
     """
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "VTK_DEFAULT_OPENGL_WINDOW")}
-    code = "import os, omniwidget.pane; print(os.environ.get('VTK_DEFAULT_OPENGL_WINDOW'))"
+    code = "import os, omniwidget.viz.pane; print(os.environ.get('VTK_DEFAULT_OPENGL_WINDOW'))"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout.split()
     assert out == (["vtkEGLRenderWindow"] if sys.platform.startswith("linux") else ["None"])
     kept = {**env, "VTK_DEFAULT_OPENGL_WINDOW": "vtkOSOpenGLRenderWindow"}
@@ -91,8 +91,8 @@ def test_handle_weights_sum_each_handles_controls(result, crossing):
 def test_handle_weights_leave_out_the_still_background(result):
     from dataclasses import replace
 
-    from omniwidget.core.handles import Options
-    from omniwidget.core.pipeline import BACKGROUND
+    from omniwidget.document.handles import Options
+    from omniwidget.method.background import BACKGROUND
 
     still = ow.warp(result.image, replace(result.handles, options=Options(anchor=5.0)))
     assert still.controls[-1].handle == BACKGROUND

@@ -20,11 +20,13 @@ import numpy as np
 import pytest
 
 import omniwidget as ow
-from omniwidget.cli import main
-from omniwidget.core import constraints, coords, quality
-from omniwidget.core.io import read_image, write_image
-from omniwidget.core.pipeline import BlendWarning
-from omniwidget.core.scenes import Scene, SceneLine, mark_lines, synthetic_room
+from omniwidget.app.cli import main
+from omniwidget.evaluate import quality
+from omniwidget.evaluate.scenes import Scene, SceneLine, mark_lines, synthetic_room
+from omniwidget.io.images import read_image, write_image
+from omniwidget.method import constraints
+from omniwidget.raster.pipeline import BlendWarning
+from omniwidget.sphere import coords
 
 #: Output width of every warp here (pixels are counted at it).
 W = 1024

@@ -3,10 +3,8 @@
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
-from omniwidget.core.handles import LineHandle, Options
-from omniwidget.core.moebius import Moebius
-from omniwidget.core.quality import (
+from omniwidget.document.handles import LineHandle, Options
+from omniwidget.evaluate.quality import (
     FAR_FIELD,
     cage_motion,
     conformal_distortion,
@@ -19,7 +17,9 @@ from omniwidget.core.quality import (
     summary,
     tear,
 )
-from omniwidget.core.warping import grid_inverse, inverse_lonlat
+from omniwidget.raster.warping import grid_inverse, inverse_lonlat
+from omniwidget.sphere import coords
+from omniwidget.sphere.moebius import Moebius
 
 from .conftest import random_lonlat
 
@@ -136,7 +136,7 @@ def test_bad_maps_are_refused_with_where_they_are_bad():
 
 
 def test_fold_signs_from_the_plane_agree_with_the_spheres_jacobians():
-    from omniwidget.core.quality import local_jacobians
+    from omniwidget.evaluate.quality import local_jacobians
 
     grid = identity_map(512)
     swirl = grid.copy()  # squeezed past itself around the seam, in a band of latitudes
@@ -195,9 +195,9 @@ def test_displacement_of_a_turn_about_the_axis_is_its_mean_chord_angle():
 
 
 def test_summary_of_a_warp_is_its_figures_one_by_one():
-    from omniwidget.core.handles import CageHandle, Handles, PointHandle
-    from omniwidget.core.pipeline import warp
-    from omniwidget.core.scenes import synthetic_room
+    from omniwidget.document.handles import CageHandle, Handles, PointHandle
+    from omniwidget.evaluate.scenes import synthetic_room
+    from omniwidget.raster.pipeline import warp
 
     width = 256
     line = LineHandle((-4.0, 37.5), (68.0, 36.5))

@@ -5,14 +5,15 @@ import warnings
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
-from omniwidget.core.constraints import build_constraints
-from omniwidget.core.edits import rectify_line
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.pipeline import BlendWarning, warp
-from omniwidget.core.quality import cage_motion, straightness
-from omniwidget.core.rectify import Anchor, Bone, crossing_pairs, solve_bones
-from omniwidget.core.scenes import mark_lines, synthetic_room
+from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.evaluate.quality import cage_motion, straightness
+from omniwidget.evaluate.scenes import mark_lines, synthetic_room
+from omniwidget.method.constraints import build_constraints
+from omniwidget.method.edits import rectify_line
+from omniwidget.method.rectify import Anchor, Bone, solve_bones
+from omniwidget.raster.pipeline import BlendWarning, warp
+from omniwidget.sphere import coords
+from omniwidget.sphere.arcs import crossing_pairs
 
 from .conftest import random_lonlat
 

@@ -28,10 +28,10 @@ import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
-from omniwidget.core import coords
-from omniwidget.core.errors import HandlesError
-from omniwidget.core.handles import Handles
-from omniwidget.core.pipeline import warp
+from omniwidget.document.handles import Handles
+from omniwidget.errors import HandlesError
+from omniwidget.raster.pipeline import warp
+from omniwidget.sphere import coords
 
 #: Generated cases per run: valid documents warped, broken documents refused.
 FUZZ_CASES = {k: n * int(os.environ.get("OMNIWIDGET_FUZZ", "1")) for k, n in {"valid": 500, "broken": 2000}.items()}
@@ -305,7 +305,7 @@ FIGURES: dict[str, dict] = {}
 def room():
     from dataclasses import asdict
 
-    from omniwidget.core.scenes import synthetic_room
+    from omniwidget.evaluate.scenes import synthetic_room
 
     from .browser_harness import artifact_dir
 
@@ -318,8 +318,8 @@ def room():
 
 def _warp(image: np.ndarray, doc: dict):
     """Warp ``doc``; check what every odd geometry must give; return the result and its quality figures."""
-    from omniwidget.core.pipeline import FOLD_WARNING_AREA
-    from omniwidget.core.quality import summary
+    from omniwidget.evaluate.quality import summary
+    from omniwidget.raster.pipeline import FOLD_WARNING_AREA
 
     handles = Handles.from_dict(doc)
     with warnings.catch_warnings():
@@ -351,7 +351,7 @@ def _line(start, end, **extra) -> dict:
 
 def _as_straight_as_their_maps(result, slack: float = 0.3) -> None:
     """Every line piece as straight in the output as its own map makes it (within ``slack`` px), as in the blending tests."""
-    from omniwidget.core.quality import straightness
+    from omniwidget.evaluate.quality import straightness
 
     for control, samples in result.constraints.lines:
         own = straightness(result.controls[control].moebius(samples), GEO_W, fit="best")
@@ -404,7 +404,7 @@ def test_a_cage_across_the_seam_and_one_around_a_pole_hold_still(room):
     )
     result, figures = _warp(room, doc)
     inverse = result.inverse_map(np.float64)
-    from omniwidget.core.quality import cage_motion
+    from omniwidget.evaluate.quality import cage_motion
 
     # README: they hold still (< 1e-12 px); measured 4.4e-14 (seam) and 8.3e-14 px (pole) at 512
     moved = cage_motion(inverse, seam), cage_motion(inverse, pole)
@@ -420,7 +420,7 @@ def test_a_cage_across_the_seam_and_one_around_a_pole_hold_still(room):
 def test_a_cage_with_a_vertex_at_a_pole_holds_still(room, pole):
     cage = [[0.0, pole], [-30.0, math.copysign(70.0, pole)], [30.0, math.copysign(70.0, pole)]]
     result, _ = _warp(room, _doc({"kind": "cage", "vertices": cage}, {"kind": "point", "position": [100.0, 0.0], "target": [104.0, 3.0]}))
-    from omniwidget.core.quality import cage_motion
+    from omniwidget.evaluate.quality import cage_motion
 
     moved = cage_motion(result.inverse_map(np.float64), cage)
     assert moved < FIXED_CAGE_PX, moved  # measured 3.9e-14 (north) and 3.0e-14 px (south) at 512
@@ -440,7 +440,7 @@ def test_a_self_intersecting_cage_holds_still(room):
     result, figures = _warp(
         room, _doc({"kind": "cage", "vertices": bow_tie}, {"kind": "point", "position": [60.0, 0.0], "target": [64.0, 2.0]})
     )
-    from omniwidget.core.quality import cage_motion
+    from omniwidget.evaluate.quality import cage_motion
 
     moved = cage_motion(result.inverse_map(np.float64), bow_tie)
     assert moved < FIXED_CAGE_PX, moved  # held still, whatever its shape: measured 4.0e-14 px at 512
@@ -460,13 +460,13 @@ def test_lines_that_cross_touch_overlap_or_repeat_come_out_straight(room, second
     first = ((-20.0, 0.0), (20.0, 20.0))
     doc = _doc(_line(*first), _line(*second), _line((100.0, 30.0), (140.0, 35.0)), mode=mode)
     if what == "overlapping along the first":  # make the second exactly on the first's great circle
-        from omniwidget.core.coords import geodesic
+        from omniwidget.sphere.coords import geodesic
 
         arc = geodesic(first[0], first[1], np.array([0.25, 1.3]))
         doc["handles"][1] = _line(arc[0], arc[1])
     result, figures = _warp(room, doc)
     # straightness as the README states it: every line's output, its largest distance from its best straight
-    # fit (Result.quality, omniwidget.core.quality), worst over the lines
+    # fit (Result.quality, omniwidget.evaluate.quality), worst over the lines
     assert len(figures.lines) >= 3 and all(np.isfinite(v) for v in figures.lines), figures.lines
     assert figures.straightness <= STRAIGHT_PX[mode], (what, mode, figures.lines)
     assert len(result.warnings) <= 2, result.warnings  # a repeated line is one warning, not one per shared point
@@ -524,8 +524,8 @@ import hashlib, json, sys, warnings
 sys.path.insert(0, sys.argv[1])
 from bench_blend import SEED, build_scene
 from dataclasses import replace
-from omniwidget.core.handles import Options
-from omniwidget.core.pipeline import warp
+from omniwidget.document.handles import Options
+from omniwidget.raster.pipeline import warp
 image, scene = build_scene(SEED)
 warnings.simplefilter("ignore")
 for rectify in ("all", "each"):
@@ -554,7 +554,7 @@ def test_the_same_image_and_handles_give_byte_identical_output():
     import hashlib
     from dataclasses import replace
 
-    from omniwidget.core.handles import Options
+    from omniwidget.document.handles import Options
 
     image, scene = build_scene(SEED)
     here = []

@@ -1,18 +1,19 @@
-"""The blended map sampled on a coarser grid (omniwidget.core.sampled) against the exact map, pixel by pixel."""
+"""The blended map sampled on a coarser grid (omniwidget.raster.sampled) against the exact map, pixel by pixel."""
 
 import warnings
 
 import numpy as np
 import pytest
 
-from omniwidget.core import _kernels, coords
-from omniwidget.core.handles import SUGGESTED_ANCHOR, CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.locate import face_neighbours, locate_faces
-from omniwidget.core.pipeline import warp
-from omniwidget.core.quality import cage_motion, straightness
-from omniwidget.core.sampled import coarse_step, sampled_coordinates
-from omniwidget.core.scenes import mark_lines, synthetic_room
-from omniwidget.core.warping import PAD, remap_coordinates
+from omniwidget.document.handles import SUGGESTED_ANCHOR, CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.evaluate.quality import cage_motion, straightness
+from omniwidget.evaluate.scenes import mark_lines, synthetic_room
+from omniwidget.method.locate import face_neighbours, locate_faces
+from omniwidget.raster import _kernels
+from omniwidget.raster.pipeline import warp
+from omniwidget.raster.sampled import coarse_step, sampled_coordinates
+from omniwidget.raster.warping import PAD, remap_coordinates
+from omniwidget.sphere import coords
 
 pytestmark = pytest.mark.skipif(not _kernels.available(), reason="the sampled map needs the compiled kernels (numba)")
 
@@ -147,7 +148,7 @@ def test_coarse_step():
 
 
 def test_the_tolerance_scale_is_the_maps_smaller_singular_value():
-    from omniwidget.core.sampled import _scale
+    from omniwidget.raster.sampled import _scale
 
     step, rows, cols = 4, 16, 32
     r, c = np.meshgrid(np.arange(rows) * step, np.arange(cols) * step, indexing="ij")

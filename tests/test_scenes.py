@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
-from omniwidget.core.scenes import FACE_COLORS, FACE_NAMES, LINE_COLOR, Scene, SceneLine, subdivide_line, synthetic_room
+from omniwidget.evaluate.scenes import FACE_COLORS, FACE_NAMES, LINE_COLOR, Scene, SceneLine, subdivide_line, synthetic_room
+from omniwidget.sphere import coords
 
 LUMA = np.array([0.299, 0.587, 0.114])
 

@@ -1,13 +1,13 @@
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
-from omniwidget.core.errors import ImageError
-from omniwidget.core.handles import CageHandle, Handles, LineHandle, Options, PointHandle
-from omniwidget.core.moebius import Moebius
-from omniwidget.core.pipeline import warp
-from omniwidget.core.quality import local_jacobians, straightness
-from omniwidget.core.warping import grid_inverse, inverse_lonlat, pad_panorama, warp_moebius
+from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.errors import ImageError
+from omniwidget.evaluate.quality import local_jacobians, straightness
+from omniwidget.raster.pipeline import warp
+from omniwidget.raster.warping import grid_inverse, inverse_lonlat, pad_panorama, warp_moebius
+from omniwidget.sphere import coords
+from omniwidget.sphere.moebius import Moebius
 
 from .conftest import offset
 
@@ -245,7 +245,7 @@ def test_inverse_map_of_the_result():
 def test_room_lines_rectified_one_at_a_time_are_straight_in_the_image():
     """Ground truth from the synthetic room: each straight 3D edge piece (up to 20°, bent >= 5 px)
     comes out straight within 0.5 px, and the warped picture shows dark line pixels along its chord."""
-    from omniwidget.core.scenes import subdivide_line, synthetic_room
+    from omniwidget.evaluate.scenes import subdivide_line, synthetic_room
 
     scene = synthetic_room(W, size=(4.0, 3.0, 3.0), camera=(0.3, -0.2, -1.0))  # low camera: ceiling edges bend
     pieces = [p for line in scene.lines_where(kind="edge") for p in subdivide_line(line, 20.0)]
@@ -268,8 +268,8 @@ def test_room_lines_rectified_one_at_a_time_are_straight_in_the_image():
 
 def test_single_precision_places_samples_within_opencvs_interpolation_step():
     """The warp's ``"single"`` arithmetic against ``"double"``: the docstring of ``grid_inverse`` claims it."""
-    from omniwidget.core.moebius import Moebius
-    from omniwidget.core.warping import grid_inverse, remap_coordinates
+    from omniwidget.raster.warping import grid_inverse, remap_coordinates
+    from omniwidget.sphere.moebius import Moebius
 
     width = 2048
     inverse = Moebius.point_map((10.0, 20.0), (30.0, -5.0), 1.7, 25.0).inverse

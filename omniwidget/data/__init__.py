@@ -22,6 +22,6 @@ def sample_path() -> Path:
 
 def sample_image() -> NDArray:
     """The bundled panorama as an RGB uint8 array, shape (512, 1024, 3)."""
-    from ..core.io import read_image
+    from ..io.images import read_image
 
     return read_image(sample_path())

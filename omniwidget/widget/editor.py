@@ -4,12 +4,12 @@ The front end (``static/editor.js``, a plain ES module that anywidget loads with
 step) draws the panorama and the handles and does every drag in the browser. The kernel
 hears of whole edits only: the handles document when a drag ends, or a command (undo,
 rectify, reset, an arrow tip moved, save, load). Everything else is a plain Python
-:class:`~omniwidget.session.EditingSession` (undo and redo, autosave, the worker that
+:class:`~omniwidget.app.session.EditingSession` (undo and redo, autosave, the worker that
 computes the newest edit's preview, the status, Save image, the live drag's basis): the
 widget syncs its traits with the session and passes the front end's messages to it.
 
 Everything the two sides exchange is in ``[lon, lat]`` degrees (the handles document of
-:mod:`omniwidget.core.handles`), never display pixels, whatever size the image is shown at.
+:mod:`omniwidget.document.handles`), never display pixels, whatever size the image is shown at.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ import anywidget
 import traitlets
 from numpy.typing import NDArray
 
-from ..core.errors import HandlesError
-from ..core.handles import Handles
-from ..session import AUTOSAVE_SUFFIX, DISPLAY_WIDTH, HISTORY, PREVIEW_WIDTH, RESULT_SUFFIX, EditingSession, as_document
+from ..app.session import AUTOSAVE_SUFFIX, DISPLAY_WIDTH, HISTORY, PREVIEW_WIDTH, RESULT_SUFFIX, EditingSession, as_document
+from ..document.handles import Handles
+from ..errors import HandlesError
 
 __all__ = ["AUTOSAVE_SUFFIX", "DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "RESULT_SUFFIX", "Editor", "saved_handles"]
 

@@ -1,0 +1,802 @@
+"""An editing session: a panorama, its handles, undo and redo, autosave and the newest result, in plain Python.
+
+:class:`EditingSession` is everything the notebook editor (:class:`omniwidget.Editor`) does
+apart from the widget: the handles document and its history (undo, redo), the autosave
+file, the preview computed in a worker thread after every edit (only the newest edit's
+result is ever shown), the status line, Save image, the live drag's basis, and the commands
+the front end sends. The widget only syncs its traits with it and passes messages; tests and
+scripts drive a session without anywidget.
+
+A session tells whoever shows it what changed through ``on_change(changes)`` (a dict of the
+fields that changed: ``handles``, ``history``, ``status``, ``preview``, ``folds``,
+``outputs``; called from the worker thread for results) and sends the front end messages
+through ``on_message(content, buffers)``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._checks import whole_number
+from ..document.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
+from ..errors import HandlesError, ImageError
+from ..io.draw import display_rgb
+from ..io.images import check_format, check_panorama, read_image, write_image
+from ..sphere import coords
+from ._latest import Latest
+
+if TYPE_CHECKING:
+    from ..method.constraints import Constraints
+    from ..raster.pipeline import Result
+
+__all__ = ["AUTOSAVE_SUFFIX", "DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "RESULT_SUFFIX", "EditingSession", "as_document"]
+
+#: Width of the result computed after every edit (the issue's "about 1024 x 512").
+PREVIEW_WIDTH = 1024
+#: Largest width of the panorama sent to the browser; larger panoramas are sent downscaled.
+DISPLAY_WIDTH = 2048
+#: Edits kept for undo.
+HISTORY = 500
+#: Seconds a result stays on screen before its quality figures are measured (a drag may go on).
+QUALITY_DELAY = 0.3
+#: The autosave file's name ends so: ``room.jpg.omniwidget-autosave.json`` next to ``room.jpg``.
+AUTOSAVE_SUFFIX = ".omniwidget-autosave.json"
+#: Set to ``0`` (or ``off``, ``false``, ``no``) to turn autosave off where not asked for explicitly.
+AUTOSAVE_ENV = "OMNIWIDGET_AUTOSAVE"
+#: Save image names the full-size result so: ``room-rectified.jpg`` next to ``room.jpg``.
+RESULT_SUFFIX = "-rectified"
+#: Formats tried, in order, after the input's own when it cannot hold the result.
+_RESULT_FORMATS = (".png", ".tif", ".npy")
+_MIME = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".tif": "image/tiff", ".tiff": "image/tiff", ".webp": "image/webp", ".bmp": "image/bmp"}
+
+_PACKAGE = Path(__file__).resolve().parents[1]  # the package, never written to (the bundled sample lives in it)
+_HANDLE_NAME = re.compile(r"handles\[(\d+)\]")
+
+
+def as_document(value: Any) -> Handles:
+    """A handles document from a :class:`Handles`, its JSON-ready dict or its JSON text (validated)."""
+    if isinstance(value, Handles):
+        return value
+    if isinstance(value, (str, bytes)):
+        return Handles.from_json(value)
+    return Handles.from_dict(value)
+
+
+def _display_rgb8(image: NDArray, width: int) -> NDArray[np.uint8]:
+    """An RGB uint8 copy of ``image`` at most ``width`` wide, for the browser."""
+    import cv2
+
+    if image.shape[1] > width:
+        image = cv2.resize(image, (width, width // 2), interpolation=cv2.INTER_AREA)
+    return display_rgb(image)
+
+
+def _jpeg(rgb: NDArray[np.uint8], quality: int = 90) -> bytes:
+    import cv2
+
+    ok, data = cv2.imencode(".jpg", rgb[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if not ok:  # pragma: no cover - OpenCV encodes any uint8 RGB image
+        raise ImageError("could not encode the image for display")
+    return data.tobytes()
+
+
+def _fold_overlay(mask: NDArray[np.bool_]) -> bytes:
+    """A PNG, transparent but where the output folds over (magenta), or b"" when it does not."""
+    import cv2
+
+    if not mask.any():
+        return b""
+    rgba = np.zeros(mask.shape + (4,), np.uint8)
+    rgba[mask] = (255, 0, 255, 150)  # BGRA: magenta
+    ok, data = cv2.imencode(".png", rgba)
+    return data.tobytes() if ok else b""
+
+
+def _output_points(doc: Handles, constraints: Constraints) -> list[list[list[float]]]:
+    """For each handle, where its control points go in the output, ``[lon, lat]``.
+
+    A point: centre, east and west arrow tips. A line: start, middle, end, placed by the
+    rectify-all solve when the document asks for it (a line split at a crossing takes each
+    control point from the piece nearest to it). A cage: its vertices' targets.
+    """
+    pieces: dict[int, list[tuple[Any, NDArray]]] = {}
+    for index, samples in constraints.lines:
+        control = constraints.controls[index]
+        pieces.setdefault(control.handle, []).append((control.moebius, coords.lonlat_to_xyz(samples)))
+    out = []
+    for i, h in enumerate(doc.handles):
+        if isinstance(h, PointHandle):
+            points = h.target_points()
+        elif isinstance(h, LineHandle):
+            points = h.control_points()
+            if i in pieces:
+                for k, p in enumerate(coords.lonlat_to_xyz(points)):
+                    nearest = max(pieces[i], key=lambda piece, p=p: float((piece[1] @ p).max()))
+                    points[k] = nearest[0](points[k])
+        else:
+            points = np.asarray(h.finals, float)
+        out.append([[round(float(lon), 9), round(float(lat), 9)] for lon, lat in points])
+    return out
+
+
+def _reset(h: PointHandle | LineHandle | CageHandle) -> PointHandle | LineHandle | CageHandle:
+    """The handle as drawn, before any transformation."""
+    if isinstance(h, PointHandle):
+        return replace(h, target=None, rotation=0.0, scale=1.0)
+    if isinstance(h, LineHandle):
+        return replace(h, rectify=False, targets=None)
+    return replace(h, targets=None)
+
+
+# --- autosave ----------------------------------------------------------------------------------
+def _digest(data: bytes | memoryview) -> str:
+    return hashlib.blake2b(data, digest_size=6).hexdigest()
+
+
+def _autosave_name(image_path: Path | None, image: NDArray) -> str:
+    """The autosave's name away from the image: the image's name and a digest of its path, or of an array's pixels."""
+    if image_path is not None:
+        return f"{image_path.stem}-{_digest(str(image_path.resolve()).encode())}{AUTOSAVE_SUFFIX}"
+    pixels = np.ascontiguousarray(image)
+    header = f"{pixels.shape}{pixels.dtype.str}".encode()
+    return f"panorama-{_digest(header + _digest(memoryview(pixels).cast('B')).encode())}{AUTOSAVE_SUFFIX}"
+
+
+def _autosave_location(autosave: Any, image_path: Path | None, image: NDArray) -> Path | None:
+    """Where the editor of this image autosaves its handles, or None when it does not (see :class:`omniwidget.Editor`)."""
+    if autosave is None:
+        off = os.environ.get(AUTOSAVE_ENV, "").strip().lower() in ("0", "off", "false", "no")
+        autosave = not off
+    if isinstance(autosave, bool):
+        if not autosave:
+            return None
+        if image_path is not None:
+            folder = image_path.resolve().parent
+            if not folder.is_relative_to(_PACKAGE) and os.access(folder, os.W_OK | os.X_OK):
+                return image_path.with_name(image_path.name + AUTOSAVE_SUFFIX)
+        return Path.cwd() / _autosave_name(image_path, image)
+    if not isinstance(autosave, (str, os.PathLike)):
+        raise TypeError(f"autosave must be True, False or a path (a file or a folder), got {type(autosave).__name__}")
+    path = Path(autosave)
+    if path.is_dir():
+        return path / _autosave_name(image_path, image)
+    if not path.parent.is_dir():
+        raise ValueError(f"autosave: the folder {path.parent} does not exist")
+    return path
+
+
+def _aside(path: Path) -> Path:
+    """A free name next to ``path`` to keep an unreadable autosave under: ``<name>.bad``, ``<name>.2.bad``, ..."""
+    candidate, n = path.with_name(path.name + ".bad"), 1
+    while candidate.exists() or candidate.is_symlink():
+        n += 1
+        candidate = path.with_name(f"{path.name}.{n}.bad")
+    return candidate
+
+
+def _read_autosave(path: Path) -> tuple[Handles | None, str]:
+    """The autosave's document (None when there is none or it is unreadable) and, when unreadable, why."""
+    if not (path.exists() or path.is_symlink()):
+        return None, ""
+    try:
+        return load_handles(path), ""
+    except HandlesError as exc:
+        problem = str(exc)
+    except Exception as exc:  # noqa: BLE001 - whatever is wrong with the file, the editor opens
+        problem = f"{path}: {type(exc).__name__}: {exc}"
+    return None, problem
+
+
+# --- save image --------------------------------------------------------------------------------
+def _result_location(image_path: Path | None, result: NDArray) -> Path:
+    """Where Save image writes ``result``: see :meth:`EditingSession.save_image`."""
+    if image_path is None:
+        base, suffixes = Path.cwd() / f"panorama{RESULT_SUFFIX}", _RESULT_FORMATS
+    else:
+        folder = image_path.parent
+        if image_path.resolve().parent.is_relative_to(_PACKAGE):  # the bundled sample: never written next to it
+            folder = Path.cwd()
+        base, suffixes = folder / f"{image_path.stem}{RESULT_SUFFIX}", (image_path.suffix, *_RESULT_FORMATS)
+    for suffix in suffixes:
+        candidate = base.with_name(base.name + suffix)
+        try:
+            check_format(candidate, result)
+        except ImageError:
+            continue  # this format cannot hold the result (alpha in a JPEG, a float image in a PNG, ...)
+        return candidate
+    return base.with_name(base.name + ".npy")  # pragma: no cover - .npy holds any array
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
+    except OSError:
+        return False
+
+
+def _exception_text(exc: BaseException) -> str:
+    """``Name: message`` of an exception, readable when the message is empty (a bare MemoryError, say)."""
+    name = type(exc).__name__
+    try:
+        detail = str(exc).strip()
+    except Exception:  # noqa: BLE001 - a broken __str__ must not hide the error itself
+        detail = ""
+    if not detail and isinstance(exc, MemoryError):
+        detail = "out of memory"
+    return f"{name}: {detail}" if detail else name
+
+
+def _count(doc: Handles) -> str:
+    return f"{len(doc)} handle" if len(doc) == 1 else f"{len(doc)} handles"
+
+
+def _kept_lines(result: Any) -> list[int]:
+    """Rectified lines over or close to a pole that the still background keeps as they are (identity map)."""
+    if result.handles.options.anchor is None:
+        return []  # the paper's method rectifies them all the same (and warns: a conflict)
+    return sorted(int(i) for i, _ in result.constraints.near_pole)
+
+
+def _finite_outputs(outputs: list[list[list[float]]]) -> bool:
+    return all(np.isfinite(points).all() for points in outputs if points)
+
+
+
+Changes = dict[str, Any]
+
+
+class EditingSession:
+    """A panorama being edited: its handles, their history, the autosave and the newest result.
+
+    Parameters are those of :class:`omniwidget.Editor` (``image``, ``handles``,
+    ``preview_width``, ``handles_path``, ``autosave``, ``quality``), and:
+
+    on_change : callable, optional
+        ``on_change(changes)`` with a dict of the fields that changed (``handles``,
+        ``history``, ``status``, ``preview``, ``folds``, ``outputs``); results arrive from
+        the worker thread.
+    on_message : callable, optional
+        ``on_message(content, buffers)``: a message for the front end (a command done, the
+        live drag's basis, an image file to download).
+
+    Nothing is computed until :meth:`start`, so that the widget can sync its traits first.
+    """
+
+    def __init__(
+        self,
+        image: NDArray | str | os.PathLike[str],
+        handles: Handles | dict | str | os.PathLike[str] | None = None,
+        *,
+        preview_width: int = PREVIEW_WIDTH,
+        handles_path: str | os.PathLike[str] | None = None,
+        autosave: bool | str | os.PathLike[str] | None = None,
+        quality: bool = True,
+        on_change: Callable[[Changes], None] | None = None,
+        on_message: Callable[[dict, list], None] | None = None,
+    ) -> None:
+        if isinstance(image, (str, os.PathLike)):
+            self._image_path: Path | None = Path(image)
+            image = read_image(image)
+        else:
+            self._image_path = None
+        self._image = check_panorama(image)
+        self._image.flags.writeable = False
+        self._scaled: dict[int, NDArray] = {}
+        width = self._image.shape[1]
+        preview_width = whole_number(preview_width, "preview_width", minimum=2, even=True)
+        self._preview_width = min(preview_width, width)
+        self._preview_source = self._downscaled(2 * self._preview_width)
+        stem = self._image_path.stem if self._image_path is not None else "panorama"
+        self.handles_path = Path(handles_path) if handles_path is not None else Path(f"{stem}.handles.json")
+        self._on_change = on_change or (lambda changes: None)
+        self._on_message = on_message or (lambda content, buffers: None)
+        self._lock = threading.Lock()
+        self._generation = 0
+        self._worker = Latest("omniwidget-editor")
+        self._quality = Latest("omniwidget-editor-quality")
+        self._live = Latest("omniwidget-editor-live")
+        self._measure = bool(quality)
+        self._undo: list[dict] = []
+        self._redo: list[dict] = []
+        self._preview_result: Result | None = None  # the Result on screen
+        self._full_result: tuple[str, Result] | None = None
+        self.last_error: BaseException | None = None
+        self.status: dict = {}
+        self.preview = b""
+        self.folds = b""
+        self.outputs: list = []
+        self.autosave_path = _autosave_location(autosave, self._image_path, self._image)
+        self._notice = ""  # status["notice"]
+        self._autosave_bad = False  # the autosave file is unreadable: moved aside at the first edit
+        if isinstance(handles, (str, os.PathLike)) and not str(handles).lstrip().startswith("{"):
+            handles = load_handles(handles)
+        doc = Handles() if handles is None else as_document(handles)
+        saved, problem = _read_autosave(self.autosave_path) if self.autosave_path is not None else (None, "")
+        if handles is None and saved is not None and len(saved):
+            self._undo.append(doc.to_dict())  # undo: start without them
+            doc = saved
+            self._notice = f"restored {_count(saved)} from {self.autosave_path} (undo to start without them)"
+        elif problem:
+            self._autosave_bad = True
+            kept = f"the file is kept, as {_aside(self.autosave_path).name} from the first edit"
+            self._notice = (
+                f"could not restore the autosave: {problem}; opened with no handles ({kept})"
+                if handles is None
+                else f"the autosave is unreadable: {problem}; handles were given ({kept})"
+            )
+        elif saved is not None and len(saved) and saved != doc:
+            self._notice = (
+                f"the autosave {self.autosave_path} ({_count(saved)}) is not used: handles were given; the first edit replaces it"
+            )
+        self.handles: dict = doc.to_dict()
+        self.history = {"undo": len(self._undo), "redo": len(self._redo)}
+
+    def start(self) -> None:
+        """Compute the first result (in the worker)."""
+        self._changed(self.document)
+
+    def _publish(self, **changes: Any) -> None:
+        """Set the fields and tell ``on_change``."""
+        for name, value in changes.items():
+            setattr(self, name, value)
+        self._on_change(changes)
+
+    def _set_status(self, **fields: Any) -> None:
+        self._publish(status={**self.status, **fields})
+
+    # --- the image -----------------------------------------------------------------------
+    @property
+    def image(self) -> NDArray:
+        """The input panorama at full size (read-only)."""
+        return self._image
+
+    @property
+    def image_path(self) -> Path | None:
+        """The file the panorama was read from, None for an array."""
+        return self._image_path
+
+    def _downscaled(self, width: int) -> NDArray:
+        """The panorama at most ``width`` wide, made once per width (display and preview share 2048)."""
+        import cv2
+
+        width = min(width, self._image.shape[1])
+        if width not in self._scaled:
+            small = (
+                self._image if width == self._image.shape[1] else cv2.resize(self._image, (width, width // 2), interpolation=cv2.INTER_AREA)
+            )
+            self._scaled[width] = small
+        return self._scaled[width]
+
+    def display_source(self) -> bytes:
+        """The panorama as the browser shows it: a JPEG at most :data:`DISPLAY_WIDTH` wide."""
+        return _jpeg(display_rgb(self._downscaled(DISPLAY_WIDTH)))
+
+    @property
+    def generation(self) -> int:
+        """The number of the newest edit (or computation asked for); ``status["generation"]`` is the one shown."""
+        return self._generation
+
+    # --- the handles ---------------------------------------------------------------------
+    @property
+    def document(self) -> Handles:
+        """The handles as a validated :class:`~omniwidget.Handles` document."""
+        return Handles.from_dict(self.handles)
+
+    def edit(self, handles: Handles | dict | str, record: bool = True) -> None:
+        """Make ``handles`` the document: an edit (undoable when ``record``), recomputed and autosaved.
+
+        Raises
+        ------
+        HandlesError
+            If the document is invalid; nothing changes then.
+        """
+        doc = as_document(handles)
+        new = doc.to_dict()
+        if new == self.handles:
+            return
+        if record:
+            self._undo.append(self.handles)
+            del self._undo[:-HISTORY]
+            self._redo.clear()
+        self._publish(handles=new)
+        self._changed(doc)  # the preview starts first; the autosave is written meanwhile
+        self._autosave(doc)
+
+    def _autosave(self, doc: Handles) -> None:
+        """Write the autosave file (whole or not at all); a failure is shown, never raised."""
+        path = self.autosave_path
+        if path is None:
+            return
+        notice = ""
+        try:
+            if self._autosave_bad:
+                bad = _aside(path)
+                if path.exists() or path.is_symlink():
+                    os.replace(path, bad)
+                self._autosave_bad = False
+                notice = f"the unreadable autosave was kept as {bad}"
+            save_handles(doc, path)
+        except Exception as exc:  # noqa: BLE001 - the edit stands; the person is told it is not on disk
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else _exception_text(exc)
+            notice = f"could not autosave to {path} ({reason}): these handles are not on disk; Save or Download them"
+        if notice != self._notice:
+            self._notice = notice
+            with self._lock:
+                self._set_status(notice=notice)
+
+    def _changed(self, doc: Handles) -> None:
+        """After every change of the handles: recompute the preview (and the control points' outputs)."""
+        self._publish(history={"undo": len(self._undo), "redo": len(self._redo)})
+        key = json.dumps(doc.to_dict(), sort_keys=True)
+        self._schedule(lambda generation: self._compute(doc, key, generation, full=False))
+
+    def _schedule(self, job: Callable[[int], None]) -> None:
+        with self._lock:
+            self._generation += 1
+            generation = self._generation
+            self._set_status(state="busy", message="computing...", error="", notice=self._notice)
+        self._worker.submit(lambda: job(generation))
+
+    def _report_error(self, message: str) -> None:
+        """Show a refused command or edit; it stays until the next edit (a result still on its way keeps it)."""
+        with self._lock:
+            self._set_status(error=message)
+
+    # --- computing -----------------------------------------------------------------------
+    def _key(self) -> str:
+        return json.dumps(self.handles, sort_keys=True)
+
+    def _full(self, doc: Handles, key: str, warn: bool) -> Any:
+        """The full-size result of ``doc`` (whose :meth:`_key` is ``key``), kept for the next ask."""
+        from ..raster.pipeline import warp
+
+        cached = self._full_result
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        result = warp(self._image, doc, warn=warn, previous=self._preview_result)  # the preview's weights, when they are these
+        self._full_result = (key, result)
+        return result
+
+    def _warp(self, doc: Handles, key: str, full: bool) -> Any:
+        from ..raster.pipeline import warp
+
+        if full or self._preview_width == self._image.shape[1]:
+            return self._full(doc, key, warn=False)
+        # the last preview's weights start the solver: a drag changes them little
+        return warp(self._preview_source, doc, width=self._preview_width, warn=False, previous=self._preview_result)
+
+    def _compute(self, doc: Handles, key: str, generation: int, full: bool) -> Any:
+        """Compute and show the result of ``doc``; return it (None when it failed, which is shown)."""
+        start = time.perf_counter()
+        try:
+            result = self._warp(doc, key, full)
+            outputs = _output_points(doc, result.constraints)
+            if not _finite_outputs(outputs):
+                raise FloatingPointError("the handles' outputs are not finite numbers")
+            if result.image.dtype.kind == "f" and not np.isfinite(result.image).all():  # the input is finite (check_panorama)
+                raise FloatingPointError("the result has pixels that are not finite numbers")
+            image = _jpeg(_display_rgb8(result.image, DISPLAY_WIDTH))
+            folds = _fold_overlay(result.folds.mask)
+        except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles and the last good image stay
+            with self._lock:
+                if generation == self._generation:
+                    self.last_error = exc
+                    message = f"could not compute the result ({_exception_text(exc)}); the handles are kept and the last good result stays"
+                    self._set_status(state="error", message=message, error=message)
+            return None
+        seconds = time.perf_counter() - start
+        kept = _kept_lines(result)
+        pole = tuple(f"handles[{i}] (line) passes " for i in kept)  # their warnings say why; they are no conflict
+        conflicts = sorted({int(i) for w in result.warnings if not w.startswith(pole) for i in _HANDLE_NAME.findall(w)})
+        with self._lock:
+            if generation != self._generation:
+                return result  # a newer edit is on its way: this result is stale
+            self._preview_result = result
+            self._publish(
+                preview=image,
+                folds=folds,
+                outputs=outputs,
+                status={
+                    **self.status,
+                    "state": "idle",
+                    "error": self.status.get("error", ""),
+                    "message": f"{result.image.shape[1]} x {result.image.shape[0]} in {seconds:.2f} s",
+                    "warnings": list(result.warnings),
+                    "conflicts": conflicts,
+                    "kept": kept,
+                    "fold_area": float(result.folds.area),
+                    "seconds": seconds,
+                    "width": int(result.image.shape[1]),
+                    "generation": generation,
+                    "quality": "",
+                },
+            )
+        if self._measure and result.weights is not None:
+            self._quality.submit(lambda: self._measure_quality(result, generation))
+        return result
+
+    def _measure_quality(self, result: Any, generation: int) -> None:
+        """The quality figures of a result on screen, in a line of the status (measured after it is shown)."""
+        time.sleep(QUALITY_DELAY)  # a drag goes on: let the next edit's computation have the cores
+        if generation != self._generation:
+            return
+        try:
+            line = result.quality.line()
+        except Exception as exc:  # noqa: BLE001 - a figure that cannot be measured is said, not raised
+            line = f"could not measure the quality ({_exception_text(exc)})"
+        with self._lock:
+            if generation == self._generation:
+                self._set_status(quality=line)
+
+    def wait(self, timeout: float | None = 120.0) -> dict:
+        """Block until the newest edit's result is shown (or failed); return :attr:`status`.
+
+        Raises
+        ------
+        TimeoutError
+            If the computation takes longer than ``timeout`` seconds.
+        """
+        if not self._worker.wait(timeout):
+            raise TimeoutError(f"the editor's computation did not finish within {timeout} s")
+        return dict(self.status)
+
+    def idle(self, timeout: float | None = 120.0) -> bool:
+        """Block until the preview, the quality figures and the live drag's basis are all done; False on timeout."""
+        return all(worker.wait(timeout) for worker in (self._worker, self._quality, self._live))
+
+    @property
+    def result(self) -> Result:
+        """The full-resolution :class:`~omniwidget.Result` of the current handles (computed on demand)."""
+        return self._full(self.document, self._key(), warn=True)
+
+    @property
+    def preview_result(self) -> Result | None:
+        """The :class:`~omniwidget.Result` last shown, or None."""
+        return self._preview_result
+
+    def compute_full(self) -> None:
+        """Compute the full-resolution result in the background and show it."""
+        doc, key = self.document, self._key()
+        self._schedule(lambda generation: self._compute(doc, key, generation, full=True))
+
+    # --- save image ---------------------------------------------------------------------------
+    def save_image(self, path: str | os.PathLike[str] | None = None) -> Path:
+        """Write the full-size result of the current handles (whole or not at all); return where.
+
+        Parameters
+        ----------
+        path : path-like, optional
+            Where to write (its suffix picks the format). Default: next to the panorama when
+            the editor was opened from a file, ``room.jpg`` giving ``room-rectified.jpg`` in
+            the input's format, or PNG (then TIFF, then ``.npy``) where that format cannot
+            hold the result (alpha in a JPEG, say); in the working folder as
+            ``panorama-rectified.png`` when it was opened from an array (and as
+            ``<stem>-rectified.<suffix>`` for the bundled sample, never written next to).
+
+        Raises
+        ------
+        ImageError
+            If the file cannot be written (a folder that is not there or not writable) or
+            ``path`` is the input panorama, which is never overwritten. The error is also
+            shown in the widget (:attr:`status` ``error``); the handles are kept.
+
+        The editor's Save image button does the same in the editor's worker (the widget never waits)
+        and also offers the file as a browser download.
+        """
+        try:
+            result = self._full(self.document, self._key(), warn=False)
+            written = self._write_result(result.image, path)
+        except Exception as exc:
+            self._report_error(self._save_image_error(exc))
+            raise
+        self._say_saved(written, result.image)
+        return written
+
+    def _write_result(self, image: NDArray, path: str | os.PathLike[str] | None) -> Path:
+        target = Path(path) if path is not None else _result_location(self._image_path, image)
+        if self._image_path is not None and _same_file(target, self._image_path):
+            raise ImageError(f"{target}: is the input panorama, which the editor never overwrites; name another file")
+        write_image(target, image)
+        return target
+
+    @staticmethod
+    @staticmethod
+    def _save_image_error(exc: BaseException) -> str:
+        text = str(exc) if isinstance(exc, ImageError) else _exception_text(exc)
+        return f"could not save the image: {text}; the handles are kept"
+
+    def _say_saved(self, path: Path, image: NDArray) -> None:
+        with self._lock:
+            message = f"{image.shape[1]} x {image.shape[0]} saved to {path}"
+            self._set_status(message=message, saved=str(path))
+
+    def _save_image_job(self, doc: Handles, key: str, generation: int) -> None:
+        """In the worker: compute and show the full-size result, write it and send it for download."""
+        result = self._compute(doc, key, generation, full=True)
+        if result is None:
+            return  # the computation's error is shown
+        try:
+            path = self._write_result(result.image, None)
+            data = path.read_bytes()
+        except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
+            self.last_error = exc
+            self._report_error(self._save_image_error(exc))
+            return
+        self._say_saved(path, result.image)
+        mime = _MIME.get(path.suffix.lower(), "application/octet-stream")
+        self._on_message({"op": "image_file", "name": path.name, "mime": mime}, [data])
+
+    def _save_image_in_worker(self) -> None:
+        doc, key = self.document, self._key()
+        self._schedule(lambda generation: self._save_image_job(doc, key, generation))
+
+    # --- edits -----------------------------------------------------------------------------
+    def undo(self) -> bool:
+        """Go back one edit; False when there is none."""
+        return self._step(self._undo, self._redo)
+
+    def redo(self) -> bool:
+        """Redo the edit last undone; False when there is none."""
+        return self._step(self._redo, self._undo)
+
+    def _step(self, source: list[dict], target: list[dict]) -> bool:
+        if not source:
+            return False
+        target.append(self.handles)
+        self.edit(source.pop(), record=False)
+        return True
+
+    def _edit(self, change: Callable[[list], None]) -> None:
+        doc = self.document
+        items = list(doc.handles)
+        change(items)
+        self.edit(replace(doc, handles=tuple(items)))
+
+    def _handle(self, index: int) -> Any:
+        items = self.document.handles
+        if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < len(items):
+            raise IndexError(f"handles[{index}]: there are {len(items)} handles")
+        return items[index]
+
+    def rectify_all(self) -> None:
+        """Rectify every line together (Sec. 3.4): the paper's "rectify all lines"."""
+        doc = self.document
+        items = tuple(replace(h, rectify=True, targets=None) if isinstance(h, LineHandle) else h for h in doc.handles)
+        self.edit(Handles(items, Options(rectify="all")))
+
+    def rectify_line(self, index: int) -> None:
+        """Rectify line ``index`` and hold every other handle where it is ("rectify current line")."""
+        from ..method.edits import rectify_line
+
+        self._handle(index)
+        self.edit(rectify_line(self.document, index))
+
+    def reset(self, index: int) -> None:
+        """Undo every transformation of handle ``index``: its output goes back to where it was drawn."""
+        h = self._handle(index)
+        self._edit(lambda items: items.__setitem__(index, _reset(h)))
+
+    def move_arrow(self, index: int, tip: Any, which: str = "east") -> None:
+        """Drag point handle ``index``'s output arrow tip to ``tip`` ``[lon, lat]``: it turns and zooms."""
+        h = self._handle(index)
+        if not isinstance(h, PointHandle):
+            raise HandlesError(f"handles[{index}]", f"a {h.kind} handle has no arrows")
+        if which not in ("east", "west"):
+            raise ValueError(f"which must be 'east' or 'west', got {which!r}")
+        moved = h.with_arrow_tip(tip, which)
+        self._edit(lambda items: items.__setitem__(index, moved))
+
+    # --- files -------------------------------------------------------------------------------
+    def save(self, path: str | os.PathLike[str] | None = None) -> Path:
+        """Write the handles file (whole or not at all); default :attr:`handles_path`."""
+        path = Path(path) if path is not None else self.handles_path
+        save_handles(self.document, path)
+        return path
+
+    def load(self, path: str | os.PathLike[str]) -> None:
+        """Replace the handles by those of a handles file (an undoable edit)."""
+        self.edit(load_handles(path))
+
+    # --- the front end's commands -----------------------------------------------------------
+    def _solve_drag(self, document: Any) -> None:
+        """Compute the preview of the handles a drag on the result has reached: no edit (no undo step, no autosave).
+
+        The live frame then draws from this result's weights (:meth:`live_basis_message`); the
+        document itself changes when the drag ends.
+        """
+        doc = as_document(document)
+        key = json.dumps(doc.to_dict(), sort_keys=True)
+        self._schedule(lambda generation: self._compute(doc, key, generation, full=False))
+
+    def live_basis_message(self, index: Any) -> None:
+        """Send the browser what it needs to redraw the result live while handle ``index`` is dragged (:mod:`omniwidget.raster.live`).
+
+        The basis of the result on screen: the other controls' part of eq. (2) and the
+        handle's own weights per preview pixel, as half floats. Nothing is sent when no
+        result is on screen or the handle has no control in it (a handle drawn meanwhile);
+        the browser then shows the drag as before, the kernel's result on release.
+        """
+        from ..raster.live import live_basis
+
+        with self._lock:
+            result, generation = self._preview_result, self.status.get("generation")
+        if result is None or not isinstance(index, int) or not 0 <= index < len(result.handles):
+            return
+        try:
+            basis = live_basis(result, index)
+        except ValueError:
+            return
+        height, width = basis.fixed.shape[:2]
+        header = {
+            "op": "live",
+            "index": index,
+            "generation": generation,
+            "controls": len(basis.controls),
+            "carry": result.handles.options.anchor is not None,
+            "width": width,
+            "height": height,
+            "origin": list(basis.origin),
+            "size": basis.size,
+        }
+        self._on_message(header, [basis.packed().view(np.uint16).tobytes()])
+
+    def command(self, content: Any) -> None:
+        """Apply a command of the front end (``{"op": ...}``); a refused one is shown in the status, the handles kept.
+
+        Every command is answered ``{"done": op}`` once it has changed the handles, so that the
+        front end starts no edit from the handles before it.
+        """
+        if not isinstance(content, dict):
+            return
+        op = content.get("op")
+        try:
+            if op == "undo":
+                self.undo()
+            elif op == "redo":
+                self.redo()
+            elif op == "rectify_all":
+                self.rectify_all()
+            elif op == "rectify_line":
+                self.rectify_line(content.get("index"))
+            elif op == "reset":
+                self.reset(content.get("index"))
+            elif op == "arrow":
+                self.move_arrow(content.get("index"), content.get("tip"), content.get("which", "east"))
+            elif op == "drag":
+                self._solve_drag(content.get("handles"))
+            elif op == "refresh":
+                self._changed(self.document)
+            elif op == "live":
+                self._live.submit(lambda: self.live_basis_message(content.get("index")))
+            elif op == "full":
+                self.compute_full()
+            elif op == "save_image":
+                self._save_image_in_worker()
+            elif op == "save":
+                path = self.save()
+                self._set_status(message=f"saved {len(self.document)} handles to {path}")
+            elif op == "load":
+                name = str(content.get("name") or "the file")
+                try:
+                    doc = Handles.from_json(content.get("text", ""))
+                except HandlesError as exc:
+                    raise HandlesError(f"{name}: {exc.where}" if exc.where else name, exc.problem) from None
+                self.edit(doc)
+            else:
+                raise ValueError(f"unknown command from the browser: {op!r}")
+        except Exception as exc:  # noqa: BLE001 - a person's click: show it, keep the handles
+            self._report_error(str(exc) if isinstance(exc, HandlesError) else f"{type(exc).__name__}: {exc}")
+        finally:  # after the handles it changed: the browser starts no edit from the handles before it
+            self._on_message({"done": op}, [])

@@ -1,0 +1,122 @@
+"""Drawing handles over a panorama, as the great-circle arcs they are (curved, wrapping at the seam).
+
+Used by the command line's demo and by figures; the widget draws in the browser instead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
+from ..sphere import coords
+
+__all__ = ["display_rgb", "draw_handles", "draw_polyline"]
+
+RGB = tuple[int, int, int]
+COLOURS: dict[str, RGB] = {"line": (230, 40, 40), "point": (220, 40, 220), "cage": (255, 255, 255)}
+ARC_SAMPLES = 64
+
+
+def _split_at_seam(px: NDArray[np.float64], width: int) -> list[NDArray[np.float64]]:
+    """Cut a pixel polyline where it jumps across the ±180° seam."""
+    jumps = np.flatnonzero(np.abs(np.diff(px[:, 0])) > width / 2) + 1
+    return [part for part in np.split(px, jumps) if len(part) > 1]
+
+
+def draw_polyline(image: NDArray[np.uint8], lonlat: ArrayLike, colour: RGB, thickness: int = 2) -> None:
+    """Draw a polyline given by ``[lon, lat]`` vertices (shape (n, 2)) onto ``image`` in place."""
+    import cv2
+
+    width = image.shape[1]
+    px = coords.lonlat_to_px(np.asarray(lonlat, dtype=np.float64), width)
+    px[:, 0] = np.mod(px[:, 0] + 0.5, width) - 0.5
+    shift = 4  # sub-pixel precision for cv2 (coordinates in 1/16 px)
+    for part in _split_at_seam(px, width):
+        pts = np.round((part + 0.5) * (1 << shift)).astype(np.int32)
+        cv2.polylines(image, [pts], False, colour, thickness, cv2.LINE_AA, shift)
+
+
+def _arc(start: ArrayLike, end: ArrayLike) -> NDArray[np.float64]:
+    return coords.geodesic(start, end, np.linspace(0.0, 1.0, ARC_SAMPLES))
+
+
+def _dot(image: NDArray[np.uint8], lonlat: ArrayLike, colour: RGB, radius: int) -> None:
+    import cv2
+
+    x, y = coords.lonlat_to_px(np.asarray(lonlat, dtype=np.float64), image.shape[1])
+    cv2.circle(image, (int(round(x)), int(round(y))), radius, colour, -1, cv2.LINE_AA)
+
+
+def draw_handles(image: NDArray, handles: Handles, *, stage: str = "input", thickness: int = 2) -> NDArray[np.uint8]:
+    """A copy of ``image`` (as RGB uint8) with the handles drawn on it.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W[, C])
+        The panorama; other depths are scaled to uint8 for display.
+    handles : Handles
+    stage : {"input", "output"}
+        ``"input"`` draws the handles where they were marked; ``"output"`` draws their images
+        under their own Möbius maps (a rectified line's image is straight).
+    thickness : int
+        Line width in pixels.
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W, 3)
+    """
+    if stage not in ("input", "output"):
+        raise ValueError(f"stage must be 'input' or 'output', got {stage!r}")
+    canvas = display_rgb(image)
+    radius = max(2, thickness + 1)
+    for h in handles.handles:
+        colour = COLOURS[h.kind]
+        if isinstance(h, LineHandle):
+            curve = _arc(h.start, h.end)
+            points = h.control_points()
+            if stage == "output":
+                curve, points = h.moebius()(curve), h.target_points()
+            draw_polyline(canvas, curve, colour, thickness)
+            for p in points:
+                _dot(canvas, p, colour, radius)
+        elif isinstance(h, PointHandle):
+            points = h.control_points() if stage == "input" else h.target_points()
+            for tip in points[1:]:
+                draw_polyline(canvas, _arc(points[0], tip), colour, thickness)
+            _dot(canvas, points[0], colour, radius + 1)
+        elif isinstance(h, CageHandle):
+            vertices = h.vertices if stage == "input" else h.finals
+            for a, b in zip(vertices, vertices[1:] + vertices[:1], strict=True):
+                draw_polyline(canvas, _arc(a, b), colour, thickness)
+            for v in vertices:
+                _dot(canvas, v, colour, radius)
+    return canvas
+
+
+def display_rgb(image: NDArray) -> NDArray[np.uint8]:
+    """An RGB uint8 copy of any supported panorama, for display.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, C)
+        uint8, uint16 (the high byte is kept) or float (0..1, clipped; NaN shows black);
+        gray and gray+alpha become gray RGB, alpha is dropped.
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W, 3)
+    """
+    img = np.asarray(image)
+    if img.dtype == np.uint16:
+        img = (img >> 8).astype(np.uint8)
+    elif img.dtype.kind == "f":
+        img = (np.clip(np.nan_to_num(img), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    else:
+        img = img.astype(np.uint8, copy=True)
+    if img.ndim == 2:
+        img = img[..., None]
+    channels = img.shape[2]
+    if channels in (1, 2):
+        img = np.repeat(img[..., :1], 3, axis=2)
+    return np.ascontiguousarray(img[..., :3])

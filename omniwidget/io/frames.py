@@ -1,0 +1,187 @@
+"""Many frames, one map: the frames of a 360° video from a still camera, warped alike.
+
+The map (for each output pixel, the input ``[lon, lat]`` it shows: ``Result.inverse_map()``,
+or a map saved by ``omniwidget warp --map``) is turned into source pixel coordinates once
+(:func:`map_coordinates`); each frame is then only read, resampled (:func:`cv2.remap`) and
+written. :func:`warp_frames` does that on a few threads: OpenCV's decoders, encoders and
+``remap`` release the GIL, so reading one frame, resampling another and writing a third
+overlap.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import ImageError, OmniwidgetError
+from ..raster.warping import ORDERS, PAD, Order, pad_panorama, remap
+from ..sphere import coords
+from .images import Fit, read_panorama, write_image
+
+__all__ = ["FrameReport", "load_map", "map_coordinates", "warp_frames"]
+
+
+def _checked_map(inverse_map: ArrayLike) -> NDArray[np.floating]:
+    """``inverse_map`` as an array, if it is a map of ``[lon, lat]`` degrees; else an ImageError saying what is wrong."""
+    m = np.asarray(inverse_map)
+    if m.ndim != 3 or m.shape[2] != 2 or m.shape[1] != 2 * m.shape[0] or m.shape[0] < 1:
+        raise ImageError(f"a map must have shape (H, 2H, 2) of [lon, lat] degrees, got {m.shape}")
+    if not np.issubdtype(m.dtype, np.floating) or not np.all(np.isfinite(m)):
+        raise ImageError("a map must hold finite floating-point [lon, lat] degrees")
+    if np.abs(m[..., 1]).max() > 90.0 + 1e-4 or np.abs(m[..., 0]).max() > 360.0:
+        raise ImageError("a map's latitudes must lie in [-90, 90] and its longitudes in [-360, 360] degrees")
+    return m
+
+
+def map_coordinates(inverse_map: ArrayLike, src_width: int) -> NDArray[np.float32]:
+    """Source pixel coordinates of an inverse map, ready for :func:`~omniwidget.raster.warping.remap`.
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, 2H, 2)
+        For each output pixel centre, the input ``[lon, lat]`` in degrees it shows.
+    src_width : int
+        Width of the frames the map is applied to (any even width: the map is in degrees).
+
+    Returns
+    -------
+    ndarray of float32, shape (H, 2H, 2)
+        ``(x, y)`` in the source padded by :data:`~omniwidget.raster.warping.PAD`
+        (:func:`~omniwidget.raster.warping.pad_panorama`).
+
+    Raises
+    ------
+    ImageError
+        If the map has the wrong shape or holds non-finite or out-of-range values.
+    """
+    m = _checked_map(inverse_map)
+    px = coords.lonlat_to_px(np.asarray(m, np.float64).reshape(-1, 2), src_width).reshape(m.shape)
+    px[..., 0] = np.mod(px[..., 0] + 0.5, src_width) - 0.5  # longitudes wrap; the padding covers the rest
+    return (px + PAD).astype(np.float32)
+
+
+def load_map(path: str | os.PathLike[str]) -> NDArray[np.float32]:
+    """Read a map saved by ``omniwidget warp --map`` (``.npy``, float32 ``(H, 2H, 2)`` of ``[lon, lat]``).
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    ndarray of float32, shape (H, 2H, 2)
+
+    Raises
+    ------
+    ImageError
+        If the file cannot be read or does not hold such a map.
+    """
+    path = Path(path)
+    try:
+        m = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise ImageError(f"{path}: cannot read the map ({exc})") from None
+    try:
+        _checked_map(m)
+    except ImageError as exc:
+        raise ImageError(f"{path}: {exc}") from None
+    return np.asarray(m, np.float32)
+
+
+@dataclass(frozen=True)
+class FrameReport:
+    """What :func:`warp_frames` did.
+
+    Attributes
+    ----------
+    written : tuple of Path
+        Outputs written, in the order of the inputs.
+    failed : tuple of (Path, str)
+        Inputs that could not be warped, and why; their outputs were not written.
+    seconds : float
+        Wall time of the whole run (reading, resampling, writing).
+    """
+
+    written: tuple[Path, ...]
+    failed: tuple[tuple[Path, str], ...]
+    seconds: float
+
+    @property
+    def fps(self) -> float:
+        """Frames written per second of wall time."""
+        return len(self.written) / self.seconds if self.seconds > 0 else float("inf")
+
+
+def warp_frames(
+    inputs: Sequence[str | os.PathLike[str]],
+    outputs: Sequence[str | os.PathLike[str]],
+    coordinates: NDArray[np.float32],
+    src_shape: tuple[int, int],
+    *,
+    order: Order = "bilinear",
+    workers: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    fit: Fit | None = None,
+) -> FrameReport:
+    """Warp many frames by one map: read, resample, write, a few frames at a time.
+
+    Parameters
+    ----------
+    inputs, outputs : sequences of path-like, the same length
+        Each input frame and where its warped frame goes (written whole or not at all).
+    coordinates : ndarray of float32, shape (h, w, 2)
+        From :func:`map_coordinates` for frames of ``src_shape``.
+    src_shape : (int, int)
+        ``(height, width)`` every frame must have.
+    order : {"nearest", "bilinear", "bicubic"}
+    workers : int, optional
+        Threads; default one per CPU plus one (reading and writing wait on the disk).
+    progress : callable, optional
+        ``progress(done, total)``, called from the calling thread after each frame.
+    fit : {"pad", "stretch"}, optional
+        Make each frame 2:1 first (:func:`~omniwidget.io.images.to_equirectangular`); by
+        default a frame that is not 2:1 fails.
+
+    Returns
+    -------
+    FrameReport
+        A frame that cannot be read, has another size or cannot be written is listed in
+        ``failed`` with the reason; the others are still warped.
+    """
+    if len(inputs) != len(outputs):
+        raise ValueError(f"{len(inputs)} inputs but {len(outputs)} outputs")
+    if order not in ORDERS:
+        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
+    workers = (os.cpu_count() or 1) + 1 if workers is None else max(1, int(workers))
+
+    def one(pair: tuple[Path, Path]) -> str | None:
+        src, dst = pair
+        try:
+            frame = read_panorama(src, fit)
+            if frame.shape[:2] != tuple(src_shape):
+                raise ImageError(f"{src}: the frame is {frame.shape[1]} x {frame.shape[0]}, the map is for {src_shape[1]} x {src_shape[0]}")
+            write_image(dst, remap(pad_panorama(frame), coordinates, order))
+        except (OmniwidgetError, OSError) as exc:
+            return str(exc)
+        return None
+
+    pairs = [(Path(i), Path(o)) for i, o in zip(inputs, outputs, strict=True)]
+    written: list[Path] = []
+    failed: list[tuple[Path, str]] = []
+    start = time.perf_counter()
+    with ThreadPoolExecutor(workers) as pool:
+        for done, ((src, dst), error) in enumerate(zip(pairs, pool.map(one, pairs), strict=True), start=1):
+            if error is None:
+                written.append(dst)
+            else:
+                failed.append((src, error))
+            if progress is not None:
+                progress(done, len(pairs))
+    return FrameReport(tuple(written), tuple(failed), time.perf_counter() - start)

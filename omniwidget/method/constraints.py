@@ -1,0 +1,440 @@
+"""From handles to the blend's controls and the weights' boundary conditions (Sec. 3.3, 3.5, 4).
+
+Every Möbius map of the blend is a *control*: one per point handle, one per line (after
+crossing lines are split into four, Sec. 4), one per cage vertex. The bounded biharmonic
+weights are pinned on points of the sphere at the handles' *final* positions, because the
+blend of eq. (2) is an inverse map:
+
+- a point handle: weight 1 at its target;
+- a line: weight 1 at ``samples`` points of its output image (its own map applied to the
+  input geodesic); an endpoint shared by ``n`` lines (a *joint*) carries ``1 / n`` for each;
+- a cage: weight 1 at each vertex for that vertex's control; along each edge, sampled
+  ``samples`` times, the two end vertices' weights vary linearly;
+- every other control: weight 0 at all of these points.
+
+With the still background (``options.anchor``, the default; issue 17) a point also holds
+its map on a small disk (:data:`POINT_HOLD`), a cage's vertex maps share the cage's best
+rotation (``CageHandle.vertex_maps(carry=True)``), a rectified line too long for one map is
+cut into pieces on one straight segment (:func:`split_line`), and a line over a pole is
+kept as it is (:data:`POLE_LATITUDE`). ``"anchor": null`` is the paper's method exactly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._checks import whole_number
+from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
+from ..sphere import coords
+from ..sphere.arcs import arc_crossing
+from ..sphere.moebius import Moebius
+from .rectify import Anchor, Bone, RectifySolution, solve_bones
+
+__all__ = ["JOINT_DISTANCE", "LINE_TOLERANCE", "POINT_HOLD", "SAMPLES", "Constraints", "Control", "build_constraints", "split_line"]
+
+#: Samples per line and per cage edge (the paper's 50).
+SAMPLES = 50
+#: Line endpoints closer than this (degrees) merge into one joint: the authors' 2π/150 rad.
+JOINT_DISTANCE = 360.0 / 150.0
+#: How close to an endpoint (degrees) a crossing may be and still split the lines.
+CROSSING_MARGIN = 1e-6
+#: With the still background a point handle's map holds exactly within this many degrees of
+#: its target (the disk's mesh vertices carry its weight 1), so the centre, the zoom and the
+#: turn the person set are what the image shows there.
+POINT_HOLD = 1.0
+#: Samples on the rim of a point handle's disk.
+RIM_SAMPLES = 12
+#: With the still background a rectified line whose map leaves it farther than this many
+#: degrees from its straight output segment (0.11 px at 2048 wide) is cut into pieces, each
+#: with its own map, until every piece lies that close (the paper's Fig. 14: one Möbius map
+#: cannot straighten a long line).
+LINE_TOLERANCE = 0.02
+#: The most pieces one line is cut into.
+MAX_PIECES = 16
+#: A rectified line that climbs to this latitude (degrees, north or south) passes over or
+#: close to a pole, where eq. (4) would send its middle far round the pole (a ceiling edge
+#: right above the camera): with the still background it is kept as it is (no arc over a
+#: pole can be straight in the panorama). Chosen where eq. (4) stops helping: the median
+#: latitude where it starts to fold and its distortion jumps (``bench/bench_pole_lines.py``).
+POLE_LATITUDE = 75.0
+
+
+@dataclass(frozen=True)
+class Control:
+    """One Möbius map of the blend and where it comes from.
+
+    Attributes
+    ----------
+    moebius : Moebius
+        Input sphere to output sphere.
+    handle : int
+        Index of the handle in the document.
+    label : str
+        Human-readable name, e.g. ``"handles[3] (line, part 2 of 2)"`` or ``"handles[5] (cage vertex 1)"``.
+    """
+
+    moebius: Moebius
+    handle: int
+    label: str
+
+
+@dataclass(frozen=True)
+class Constraints:
+    """The blend's controls and the points where their weights are prescribed.
+
+    Attributes
+    ----------
+    controls : tuple of Control
+        ``k`` controls, the columns of the weights.
+    points : ndarray of float64, shape (p, 3)
+        Unit vectors (final positions) where the weights are prescribed.
+    values : ndarray of float64, shape (p, k)
+        Prescribed weights at ``points``.
+    lines : tuple of (int, ndarray)
+        For each line piece, its control index and its input samples ``[lon, lat]`` (s, 2).
+    rectified : RectifySolution or None
+        With ``options.rectify == "all"`` and at least one rectified line: the solve of
+        Sec. 3.4 that placed the lines' control points (:mod:`.rectify`).
+    chains : tuple of tuple of int
+        Indices into ``lines`` of the pieces that make one straight output segment, in order
+        along it: a line cut for its length (:func:`split_line`) is one chain of several
+        pieces, every other line piece a chain of one. Straightness is measured per chain.
+    disks : tuple of (int, ndarray)
+        With the still background: each point handle's control and its target (a unit
+        vector, (3,)); the blend holds that control's map exactly within
+        :data:`POINT_HOLD` degrees of it.
+    cages : tuple of (tuple of int, ndarray)
+        Each cage's controls and its output polygon ``[lon, lat]`` (n, 2): with the still
+        background only those controls have weight inside it.
+    near_pole : tuple of (int, float)
+        Rectified lines that climb to :data:`POLE_LATITUDE` or beyond: the handle's index and
+        the latitude it reaches (negative in the south). With the still background they are
+        kept as they are (an identity map, fixed in Sec. 3.4).
+    """
+
+    controls: tuple[Control, ...]
+    points: NDArray[np.float64]
+    values: NDArray[np.float64]
+    lines: tuple[tuple[int, NDArray[np.float64]], ...]
+    rectified: RectifySolution | None = None
+    chains: tuple[tuple[int, ...], ...] = ()
+    disks: tuple[tuple[int, NDArray[np.float64]], ...] = ()
+    cages: tuple[tuple[tuple[int, ...], NDArray[np.float64]], ...] = ()
+    near_pole: tuple[tuple[int, float], ...] = ()
+
+
+@dataclass
+class _Piece:
+    handle: int
+    start: NDArray[np.float64]  # unit vectors
+    end: NDArray[np.float64]
+    line: LineHandle
+
+
+def _split_crossings(pieces: list[_Piece]) -> list[_Piece]:
+    """Split rectified lines at their crossings (Sec. 4), repeatedly until none cross."""
+    changed = True
+    while changed:
+        changed = False
+        for i in range(len(pieces)):
+            for j in range(i + 1, len(pieces)):
+                a, b = pieces[i], pieces[j]
+                if a.line.targets is not None or b.line.targets is not None:
+                    continue  # explicit targets say where three points go: splitting would change them
+                x = arc_crossing(a.start, a.end, b.start, b.end, CROSSING_MARGIN)
+                if x is None:
+                    continue
+                pieces[j : j + 1] = [_Piece(b.handle, b.start, x, b.line), _Piece(b.handle, x, b.end, b.line)]
+                pieces[i : i + 1] = [_Piece(a.handle, a.start, x, a.line), _Piece(a.handle, x, a.end, a.line)]
+                changed = True
+                break
+            if changed:
+                break
+    return pieces
+
+
+def _joints(pieces: list[_Piece], distance: float) -> dict[tuple[int, int], int]:
+    """Cluster line endpoints closer than ``distance`` degrees; returns (piece, end) -> joint id."""
+    ends = [(i, e) for i, p in enumerate(pieces) if p.line.targets is None for e in (0, 1)]
+    xyz = np.array([pieces[i].start if e == 0 else pieces[i].end for i, e in ends]).reshape(-1, 3)
+    parent = list(range(len(ends)))
+
+    def root(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    limit = 2 * math.sin(math.radians(distance) / 2)
+    for a in range(len(ends)):
+        for b in range(a + 1, len(ends)):
+            if ends[a][0] != ends[b][0] and np.linalg.norm(xyz[a] - xyz[b]) < limit:
+                parent[root(a)] = root(b)
+    groups: dict[int, list[int]] = {}
+    for a in range(len(ends)):
+        groups.setdefault(root(a), []).append(a)
+    joint_of: dict[tuple[int, int], int] = {}
+    for members in groups.values():
+        pieces_in = [ends[m][0] for m in members]
+        if len(set(pieces_in)) < 2 or len(set(pieces_in)) < len(pieces_in):
+            continue  # a lone endpoint, or a line shorter than the joint distance: not a joint
+        centre = xyz[members].sum(axis=0)
+        centre /= np.linalg.norm(centre)
+        jid = len({*joint_of.values()})
+        for m in members:
+            i, e = ends[m]
+            if e == 0:
+                pieces[i].start = centre
+            else:
+                pieces[i].end = centre
+            joint_of[(i, e)] = jid
+    return joint_of
+
+
+def _off_chord(curve: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """Largest distance (degrees, in the lon/lat plane) of a curve from the straight line through ``a`` and ``b``.
+
+    ``curve`` (n, 2) has its longitudes unwrapped near ``a``; ``a`` and ``b`` (2,) are in that frame.
+    """
+    chord = b - a
+    normal = np.array([-chord[1], chord[0]]) / max(float(np.hypot(*chord)), 1e-300)
+    return float(np.max(np.abs((curve - a) @ normal)))
+
+
+def split_line(
+    moebius: Moebius, start: ArrayLike, end: ArrayLike, tolerance: float = LINE_TOLERANCE, max_pieces: int = MAX_PIECES
+) -> list[tuple[NDArray[np.float64], NDArray[np.float64], Moebius]]:
+    """Cut a line that one Möbius map cannot straighten into pieces, each with its own map onto one straight segment.
+
+    Parameters
+    ----------
+    moebius : Moebius
+        The line's map (eq. 4's, or Sec. 3.4's): its output segment runs from where it puts
+        ``start`` to where it puts ``end``, straight in the equirectangular image.
+    start, end : array_like, shape (2,)
+        The line's input ends, ``[lon, lat]`` in degrees.
+    tolerance : float
+        Degrees: the largest distance of the line's image from its segment that is left.
+    max_pieces : int
+
+    Returns
+    -------
+    list of (ndarray, ndarray, Moebius)
+        Each piece's input start and end ``[lon, lat]`` (2,) and its map, in order along the
+        line; ``[(start, end, moebius)]`` when the map alone is within ``tolerance``.
+
+    Notes
+    -----
+    A Möbius map sends the line's great circle to a circle of the sphere, and a circle
+    through three points of a straight segment of the image stays near it only over a short
+    arc. With ``n`` pieces, the piece ends and middles (the line cut into equal arcs) go to where
+    ``moebius`` puts them, moved across onto the segment (projected in the lon/lat plane):
+    each piece's map is then a small correction of the line's own, the pieces meet at their
+    ends, and together they run along one segment. The smallest ``n`` that leaves every
+    piece within ``tolerance`` is taken.
+    """
+    start, end = np.asarray(start, np.float64), np.asarray(end, np.float64)
+    t = np.linspace(0.0, 1.0, 101)
+    whole = moebius(coords.geodesic(start, end, t))
+    whole[:, 0] = np.unwrap(whole[:, 0], period=360.0)  # along the line's image, which may span more than 180°
+    a, b = whole[0], whole[-1]
+
+    def image(m: Moebius, lonlat: NDArray) -> NDArray:
+        out = m(lonlat)
+        out[:, 0] = np.unwrap(out[:, 0], period=360.0)
+        out[:, 0] += 360.0 * np.round((whole[np.argmin(coords.angular_distance(whole, out[0]))][0] - out[0, 0]) / 360.0)
+        return out
+
+    if _off_chord(whole, a, b) <= tolerance:
+        return [(start, end, moebius)]
+    chord = b - a
+    pieces: list[tuple[NDArray[np.float64], NDArray[np.float64], Moebius]] = []
+    p, q = coords.lonlat_to_xyz(start), coords.lonlat_to_xyz(end)
+    angle = math.acos(min(max(float(p @ q), -1.0), 1.0))
+    across = (q - math.cos(angle) * p) / math.sin(angle)
+    for n in range(2, max_pieces + 1):
+        turn = np.linspace(0.0, angle, 2 * n + 1)[:, None]  # equal steps of arc
+        knots = coords.xyz_to_lonlat(np.cos(turn) * p + np.sin(turn) * across)
+        knots[0], knots[-1] = start, end
+        onto = image(moebius, knots)
+        onto = a + np.outer((onto - a) @ chord / (chord @ chord), chord)  # across onto the segment
+        pieces = [
+            (knots[2 * j], knots[2 * j + 2], Moebius.from_points(knots[2 * j : 2 * j + 3], onto[2 * j : 2 * j + 3])) for j in range(n)
+        ]
+        worst = max(_off_chord(image(m, coords.geodesic(p, q, t)), a, b) for p, q, m in pieces)
+        if worst <= tolerance:
+            break
+    return pieces
+
+
+def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distance: float = JOINT_DISTANCE) -> Constraints:
+    """The controls of a handles document and the boundary conditions of their weights.
+
+    Parameters
+    ----------
+    handles : Handles
+    samples : int
+        Points per line and per cage edge, endpoints included (at least 2).
+    joint_distance : float
+        Degrees; line endpoints closer than this become one joint.
+
+    Returns
+    -------
+    Constraints
+    """
+    samples = whole_number(samples, "samples", 2)
+    t = np.linspace(0.0, 1.0, samples)
+    controls: list[Control] = []
+    rows: list[tuple[NDArray[np.float64], dict[int, float]]] = []  # (point, {control: weight})
+    line_samples: list[tuple[int, NDArray[np.float64]]] = []
+
+    background = handles.options.anchor is not None
+    tops = [(i, _pole_latitude(h)) for i, h in enumerate(handles.handles) if isinstance(h, LineHandle)]
+    near_pole = tuple((i, top) for i, top in tops if top)
+    kept = {i for i, _ in near_pole} if background else set()
+    pieces = [
+        _Piece(i, coords.lonlat_to_xyz(h.start), coords.lonlat_to_xyz(h.end), replace(h, rectify=False) if i in kept else h)
+        for i, h in enumerate(handles.handles)
+        if isinstance(h, LineHandle)
+    ]
+    pieces = _split_crossings(pieces)
+    joint_of = _joints(pieces, joint_distance)
+    pieces_of: dict[int, list[int]] = {}
+    for k, piece in enumerate(pieces):
+        pieces_of.setdefault(piece.handle, []).append(k)
+    solution = _rectify_all(handles, pieces, joint_of, t) if handles.options.rectify == "all" else None
+    joint_rows: dict[int, dict[int, float]] = {}
+    joint_points: dict[int, NDArray[np.float64]] = {}
+    chains: list[tuple[int, ...]] = []
+    disks: list[tuple[int, NDArray[np.float64]]] = []
+    cages: list[tuple[tuple[int, ...], NDArray[np.float64]]] = []
+
+    for i, h in enumerate(handles.handles):
+        if isinstance(h, PointHandle):
+            controls.append(Control(h.moebius(), i, f"handles[{i}] (point)"))
+            centre = coords.lonlat_to_xyz(h.final)
+            rows.append((centre, {len(controls) - 1: 1.0}))
+            if background:  # the rim of the disk where the point's map holds exactly
+                disks.append((len(controls) - 1, centre))
+                east, north = coords.local_frame(h.final)
+                turn = np.linspace(0.0, 2.0 * math.pi, RIM_SAMPLES, endpoint=False)[:, None]
+                r = math.radians(POINT_HOLD)
+                rim = math.cos(r) * centre + math.sin(r) * (np.cos(turn) * east + np.sin(turn) * north)
+                rows.extend((p, {len(controls) - 1: 1.0}) for p in rim)
+        elif isinstance(h, CageHandle):
+            first = len(controls)
+            maps = h.vertex_maps(carry=background)
+            for v, m in enumerate(maps):
+                controls.append(Control(m, i, f"handles[{i}] (cage vertex {v})"))
+            cages.append((tuple(range(first, len(controls))), np.asarray(h.finals, dtype=np.float64)))
+            finals = coords.lonlat_to_xyz(np.asarray(h.finals, dtype=np.float64))
+            n = len(maps)
+            for v in range(n):
+                w = (v + 1) % n
+                arc = coords.lonlat_to_xyz(coords.geodesic(coords.xyz_to_lonlat(finals[v]), coords.xyz_to_lonlat(finals[w]), t[:-1]))
+                for s, point in enumerate(arc):
+                    weights = {first + v: 1.0 - t[s]}
+                    if t[s] > 0:
+                        weights[first + w] = t[s]
+                    rows.append((point, weights))
+        else:
+            parts_of = {
+                k: _line_parts(pieces[k].line, pieces[k], solution.targets[k] if solution is not None else None, background)
+                for k in pieces_of[i]
+            }
+            total = sum(len(p) for p in parts_of.values())
+            number = 0
+            for k, parts in parts_of.items():
+                first = len(line_samples)
+                for j, (start, end, m) in enumerate(parts):
+                    number += 1
+                    part = f", part {number} of {total}" if total > 1 else ""
+                    controls.append(Control(m, i, f"handles[{i}] (line{part})"))
+                    c = len(controls) - 1
+                    src = coords.geodesic(start, end, t)
+                    line_samples.append((c, src))
+                    out = m.apply_xyz(coords.lonlat_to_xyz(src))
+                    for s in range(samples):
+                        if s == 0 and j > 0:
+                            continue  # the joint with the piece before, already a row
+                        if s == samples - 1 and j < len(parts) - 1:
+                            rows.append((out[s], {c: 0.5, c + 1: 0.5}))  # both pieces' maps put it here
+                            continue
+                        end_id = 0 if s == 0 else 1 if s == samples - 1 else None
+                        if end_id is not None and (k, end_id) in joint_of:
+                            jid = joint_of[(k, end_id)]
+                            joint_rows.setdefault(jid, {})[c] = 1.0
+                            joint_points.setdefault(jid, out[s])
+                            continue
+                        rows.append((out[s], {c: 1.0}))
+                chains.append(tuple(range(first, len(line_samples))))
+    for jid, members in joint_rows.items():
+        share = 1.0 / len(members)
+        rows.append((joint_points[jid], dict.fromkeys(members, share)))
+
+    k = len(controls)
+    points = np.array([r[0] for r in rows], dtype=np.float64).reshape(-1, 3)
+    values = np.zeros((len(rows), k))
+    for r, (_, weights) in enumerate(rows):
+        for c, w in weights.items():
+            values[r, c] = w
+    return Constraints(
+        tuple(controls), points, values, tuple(line_samples), solution, tuple(chains), tuple(disks), tuple(cages), near_pole
+    )
+
+
+def _pole_latitude(h: LineHandle) -> float:
+    """The latitude a rectified line climbs to when that is :data:`POLE_LATITUDE` or more (signed), else 0."""
+    if h.targets is not None or not h.rectify:
+        return 0.0
+    top = coords.arc_max_abs_lat(h.start, h.end)
+    if top < POLE_LATITUDE:
+        return 0.0
+    middle = coords.geodesic(h.start, h.end, np.linspace(0.0, 1.0, 33))[:, 1]
+    return top if middle[np.argmax(np.abs(middle))] > 0 else -top
+
+
+def _line_parts(
+    h: LineHandle, piece: _Piece, targets: NDArray[np.float64] | None, background: bool
+) -> list[tuple[NDArray[np.float64], NDArray[np.float64], Moebius]]:
+    """A line piece's map, cut for its length (:func:`split_line`) where the still background is on and the line is rectified."""
+    start, end = coords.xyz_to_lonlat(piece.start), coords.xyz_to_lonlat(piece.end)
+    # explicit targets keep the handle as drawn; otherwise the piece's (split, snapped) ends
+    if h.targets is not None:
+        line = h
+    elif targets is not None:
+        line = LineHandle(tuple(start), tuple(end), rectify=False, targets=tuple(map(tuple, targets)))
+    else:
+        line = LineHandle(tuple(start), tuple(end), rectify=h.rectify)
+    m = line.moebius()
+    if background and h.targets is None and h.rectify:
+        return split_line(m, start, end)
+    return [(start, end, m)]
+
+
+def _rectify_all(handles: Handles, pieces: list[_Piece], joint_of: dict[tuple[int, int], int], t: NDArray) -> RectifySolution | None:
+    """Sec. 3.4 for the rectified line pieces; the other handles take part as they are."""
+    free = [p.line.rectify and p.line.targets is None for p in pieces]
+    if not any(free):
+        return None
+    bones = []
+    for k, piece in enumerate(pieces):
+        start, end = coords.xyz_to_lonlat(piece.start), coords.xyz_to_lonlat(piece.end)
+        outputs = None
+        if not free[k]:
+            outputs = piece.line.moebius()(coords.geodesic(start, end, t))  # its targets, or the identity
+        bones.append(Bone(tuple(start), tuple(end), free[k], (joint_of.get((k, 0)), joint_of.get((k, 1))), outputs))
+    anchors = []
+    for h in handles.handles:
+        if isinstance(h, PointHandle):
+            anchors.append(Anchor(np.array([h.position], np.float64), np.array([h.final], np.float64)))
+        elif isinstance(h, CageHandle):
+            n = len(h.vertices)
+            for v in range(n):
+                w = (v + 1) % n
+                anchors.append(Anchor(coords.geodesic(h.vertices[v], h.vertices[w], t), coords.geodesic(h.finals[v], h.finals[w], t)))
+    return solve_bones(bones, anchors, samples=len(t), keep="endpoints" if handles.options.anchor is None else "sphere")

@@ -1,0 +1,367 @@
+"""The paper's method from a handles document to a deformation of the sphere, step by step (Sec. 3).
+
+:func:`deform` runs the steps in order: the controls and their boundary conditions
+(:mod:`.constraints`, with the Sec. 3.4 solve of :mod:`.rectify`), the adaptive mesh at the
+handles' final positions (:mod:`.mesh`), the still background when asked for
+(:mod:`.background`), and the bounded biharmonic weights (:mod:`.bbw`). The answer, a
+:class:`Deformation`, is the blend of eq. (2), ``T⁻¹(p) = normalize(Σ_j W_j(p) M_j⁻¹(p))``,
+which :meth:`Deformation.inverse_points` evaluates at any direction. The per-pixel engine
+(:mod:`omniwidget.raster`) evaluates it on an image's grid.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._timing import Laps
+from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
+from ..sphere import coords
+from ..sphere.arcs import crossing_pairs, inside_polygon
+from ..sphere.moebius import Moebius
+from .background import BACKGROUND_EASE, cage_insides, carry_insides, ease_background, with_background
+from .constraints import SAMPLES, Constraints, Control, build_constraints
+from .locate import interpolate, locate_points
+from .mesh import adaptive_mesh
+
+__all__ = ["Deformation", "blended_points", "deform"]
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class Deformation:
+    """What the method computed for a handles document: the controls' maps and the weights that blend them.
+
+    Attributes
+    ----------
+    handles : Handles
+        The document.
+    constraints : Constraints
+        The controls (one Möbius map each) and the prescribed weights; with a still
+        background, its control is the last.
+    vertices, faces : ndarray or None
+        The adaptive mesh, (n, 3) float64 and (m, 3) int64; None when one map does it all.
+    constrained : ndarray of int64 or None
+        Mesh vertices carrying boundary conditions, (b,).
+    prescribed : ndarray of float64 or None
+        The weights prescribed there, (b, k): the boundary conditions the solver was given
+        (conflicting prescriptions on one vertex already averaged).
+    weights : ndarray of float64 or None
+        The blend's weights per mesh vertex and control, (n, k): the bounded biharmonic
+        weights normalised, and with a still background eased
+        (:func:`~omniwidget.method.background.ease_background`).
+    raw_weights : ndarray of float64 or None
+        The bounded biharmonic weights before the rows were normalised, (n, k): what
+        :func:`omniwidget.method.bbw.bbw` solved for, kept so that the next solve of a
+        similar document can start from them (``deform(..., previous=...)``).
+    warnings : tuple of str
+        Conflicts found on the way.
+    timings : dict of str to float
+        Seconds per step.
+    """
+
+    handles: Handles
+    constraints: Constraints
+    vertices: NDArray[np.float64] | None = None
+    faces: NDArray[np.int64] | None = None
+    constrained: NDArray[np.int64] | None = None
+    prescribed: NDArray[np.float64] | None = None
+    weights: NDArray[np.float64] | None = None
+    raw_weights: NDArray[np.float64] | None = field(default=None, repr=False)
+    warnings: tuple[str, ...] = ()
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def controls(self) -> tuple[Control, ...]:
+        """The controls, in the order of the weights' columns."""
+        return self.constraints.controls
+
+    @property
+    def moebius(self) -> Moebius | None:
+        """The single map of the warp when all controls share one map (or there are none), else None."""
+        maps = [c.moebius for c in self.controls]
+        if not maps:
+            return Moebius.identity()
+        return maps[0] if all(m.isclose(maps[0]) for m in maps[1:]) else None
+
+    def inverse_points(self, lonlat: ArrayLike) -> NDArray[np.float64]:
+        """The blended inverse map (eq. 2) at arbitrary output positions.
+
+        Parameters
+        ----------
+        lonlat : array_like, shape (..., 2)
+            Output ``[lon, lat]`` in degrees.
+
+        Returns
+        -------
+        ndarray of float64, shape (..., 2)
+            The input ``[lon, lat]`` each position shows.
+        """
+        xyz = coords.lonlat_to_xyz(lonlat)
+        if self.weights is None or self.vertices is None or self.faces is None:
+            single = self.moebius if self.moebius is not None else Moebius.identity()
+            return coords.xyz_to_lonlat(single.inverse.apply_xyz(xyz))
+        return blended_points([c.moebius.inverse for c in self.controls], self.vertices, self.faces, self.weights, xyz)
+
+    def forward_points(self, lonlat: ArrayLike, control: int, iterations: int = 8) -> NDArray[np.float64]:
+        """Where input positions land in the output, by inverting the blend near a control.
+
+        Starts from the control's own map and corrects by fixed-point steps
+        ``q <- M(M⁻¹(q) + (p - T⁻¹(q)))``, which converge where the blend is close to that
+        control's map (on and near its handle).
+
+        Parameters
+        ----------
+        lonlat : array_like, shape (n, 2)
+            Input ``[lon, lat]`` in degrees.
+        control : int
+            Index of the control whose map starts the search.
+        iterations : int
+
+        Returns
+        -------
+        ndarray of float64, shape (n, 2)
+        """
+        m = self.controls[control].moebius
+        p = coords.lonlat_to_xyz(lonlat)
+        q = m.apply_xyz(p)
+        for _ in range(iterations):
+            shown = coords.lonlat_to_xyz(self.inverse_points(coords.xyz_to_lonlat(q)))
+            step = m.inverse.apply_xyz(q) + (p - shown)
+            q = m.apply_xyz(step / np.linalg.norm(step, axis=-1, keepdims=True))
+        return coords.xyz_to_lonlat(q)
+
+
+class Solved(Protocol):
+    """An earlier solve whose weights a new one may reuse: a :class:`Deformation` or a warp's ``Result``."""
+
+    vertices: NDArray[np.float64] | None
+    faces: NDArray[np.int64] | None
+    constrained: NDArray[np.int64] | None
+    prescribed: NDArray[np.float64] | None
+    raw_weights: NDArray[np.float64] | None
+
+    @property
+    def controls(self) -> tuple[Control, ...]: ...
+
+
+def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None = None) -> Deformation:
+    """The paper's method, from a handles document to the blended deformation of the sphere.
+
+    One map for everything (no handles, one point or line, handles that do not move) needs
+    no mesh: the deformation has no weights. Otherwise the controls' maps are blended by
+    bounded biharmonic weights on the adaptive mesh.
+
+    Parameters
+    ----------
+    handles : Handles
+    samples : int
+        Points per line and cage edge in the boundary conditions (the paper's 50).
+    previous : Deformation or Result, optional
+        The solve of a similar document (the editor's last preview, say). When it solved the
+        same weights problem (the same mesh and boundary conditions) its weights are taken as
+        they are; when its controls are the same ones, its weights interpolated onto the new
+        mesh start the solver (:func:`omniwidget.method.bbw.bbw`'s ``start``), which then
+        needs fewer steps to the same weights.
+
+    Returns
+    -------
+    Deformation
+    """
+    timings: dict[str, float] = {}
+    lap = Laps(timings)
+    constraints = build_constraints(handles, samples=samples)
+    lap("constraints")
+    problems = _pole_lines(handles, constraints)
+    maps = [c.moebius for c in constraints.controls]
+    single = maps[0] if maps else Moebius.identity()
+    # one map for everything; with a still background only if that map is the identity
+    if all(m.isclose(single) for m in maps[1:]) and (handles.options.anchor is None or single.isclose(Moebius.identity())):
+        return Deformation(handles=handles, constraints=constraints, warnings=tuple(problems), timings=timings)
+
+    problems += _inside_fixed_cages(handles) + _crossing_lines(constraints)
+    mesh = adaptive_mesh(constraints.points)
+    lap("mesh")
+    fixed, fixed_values, insides = np.empty(0, dtype=np.int64), np.empty((0, 0)), []
+    if handles.options.anchor is not None:
+        insides = cage_insides(constraints, mesh.vertices)
+        constraints, fixed, fixed_values = with_background(constraints, mesh.vertices, handles.options.anchor, insides)
+    b, bc, clashes = _merge_duplicates(mesh.sample_index, constraints.values, constraints.controls)
+    extra = ~np.isin(fixed, b)
+    if extra.any():  # the background's still vertices and the points' disks
+        fixed, first = np.unique(fixed[extra], return_index=True)
+        b = np.concatenate([b, fixed])
+        bc = np.vstack([bc, fixed_values[extra][first]])
+    from .bbw import bbw, normalize_rows  # scipy's sparse solvers load with the first solve, not with the package
+
+    raw = _previous_weights(previous, mesh.vertices, mesh.faces, b, bc)
+    if raw is None:
+        raw = bbw(mesh.vertices, mesh.faces, b, bc, start=_warm_start(previous, constraints, mesh.vertices))
+    weights = normalize_rows(raw)
+    if handles.options.anchor is not None:
+        weights = ease_background(carry_insides(weights, insides), BACKGROUND_EASE)
+    lap("weights")
+    return Deformation(
+        handles=handles,
+        constraints=constraints,
+        vertices=mesh.vertices,
+        faces=mesh.faces,
+        constrained=b,
+        prescribed=bc,
+        weights=weights,
+        raw_weights=raw,
+        warnings=tuple(problems + clashes),
+        timings=timings,
+    )
+
+
+def blended_points(
+    inverses: Sequence[Moebius], vertices: NDArray[np.float64], faces: NDArray[np.int64], weights: NDArray[np.floating], xyz: NDArray
+) -> NDArray[np.float64]:
+    """The blended inverse map of eq. (2) at arbitrary output directions.
+
+    Parameters
+    ----------
+    inverses : sequence of Moebius
+        ``M_j⁻¹`` for the ``k`` controls.
+    vertices, faces : ndarray, shapes (n, 3) and (m, 3)
+        The mesh.
+    weights : ndarray, shape (n, k)
+        Normalised weights per vertex.
+    xyz : ndarray, shape (..., 3)
+        Output directions.
+
+    Returns
+    -------
+    ndarray of float64, shape (..., 2)
+        The input ``[lon, lat]`` (degrees) each direction shows.
+    """
+    from ..method.locate import locate_points
+
+    xyz = np.asarray(xyz, dtype=np.float64)
+    flat = xyz.reshape(-1, 3)
+    face, bary = locate_points(vertices, faces, flat)
+    w = interpolate(np.asarray(weights, np.float64), faces, face, bary)
+    acc = np.zeros_like(flat)
+    for j, m in enumerate(inverses):
+        acc += w[:, [j]] * m.apply_xyz(flat)
+    return coords.xyz_to_lonlat(acc).reshape(xyz.shape[:-1] + (2,))
+
+
+#: The piece of a line a control is (", part 2 of 3"), left out where handles are named.
+_PART = re.compile(r", part \d+ of \d+")
+
+
+def _merge_duplicates(
+    b: NDArray[np.int64], values: NDArray[np.float64], controls: tuple[Control, ...]
+) -> tuple[NDArray, NDArray, list[str]]:
+    """One row per constrained vertex; conflicting prescriptions are averaged and reported."""
+    order = np.argsort(b, kind="stable")
+    b, values = b[order], values[order]
+    unique, start = np.unique(b, return_index=True)
+    merged = np.add.reduceat(values, start, axis=0) / np.diff(np.append(start, len(b)))[:, None]
+    clashes: dict[tuple[str, ...], list[int]] = {}  # the controls that share points, and the points
+    for u, s, e in zip(unique, start, np.append(start[1:], len(b)), strict=True):
+        rows = values[s:e]
+        if e - s > 1 and np.abs(rows - rows[0]).max() > 1e-9:
+            names = tuple(sorted({_PART.sub("", controls[c].label) for c in np.flatnonzero(np.abs(rows).sum(axis=0) > 0)}))
+            clashes.setdefault(names, []).append(int(u))
+    problems = [
+        f"constraints of {', '.join(names)} fall on the same point"
+        + (f" (mesh vertex {at[0]})" if len(at) == 1 else f"s ({len(at)} mesh vertices, {at[0]} first)")
+        + "; their weights were averaged"
+        for names, at in clashes.items()
+    ]
+    return unique, merged, problems
+
+
+def _inside_fixed_cages(handles: Handles) -> list[str]:
+    """Warnings for handles that move something inside a cage that holds its inside still (the paper's Fig. 15)."""
+    found = []
+    for i, cage in enumerate(handles.handles):
+        if not isinstance(cage, CageHandle) or cage.finals != cage.vertices:
+            continue
+        for j, other in enumerate(handles.handles):
+            if j == i:
+                continue
+            if isinstance(other, PointHandle):
+                moves = other.final != other.position or other.scale != 1.0 or other.rotation != 0.0
+                where = [other.position, other.final]
+            elif isinstance(other, LineHandle):
+                moves, where = True, [other.start, other.end]
+            else:
+                moves, where = other.finals != other.vertices, [*other.vertices, *other.finals]
+            if moves and inside_polygon(np.asarray(where, np.float64), cage.vertices).any():
+                found.append(
+                    f"handles[{j}] ({other.kind}) moves what handles[{i}] (cage) holds still: the cage's inside cannot stay "
+                    "where it is; move the handle out of the cage, or give the cage targets"
+                )
+    return found
+
+
+def _pole_lines(handles: Handles, constraints: Constraints) -> list[str]:
+    """One warning per rectified line that passes over or close to a pole (:data:`~omniwidget.method.constraints.POLE_LATITUDE`)."""
+    background = handles.options.anchor is not None
+    found = []
+    for i, top in constraints.near_pole:
+        line = handles.handles[i]
+        moved = float(coords.angular_distance(coords.geodesic_midpoint(line.start, line.end), line.target_points()[1]))
+        where = f"handles[{i}] (line) passes {90 - abs(top):.1f}° from the {'north' if top > 0 else 'south'} pole"
+        if background:
+            found.append(
+                f"{where}: it is kept as it is (eq. 4 would move its middle {moved:.0f}° and twist the panorama); "
+                "an arc over a pole cannot be straight in the panorama, mark pieces of it that stay lower to straighten them"
+            )
+        else:
+            found.append(
+                f"{where}: eq. (4) moves its middle {moved:.0f}° and twists the panorama (the paper's method, "
+                '"anchor": null); give it "rectify": false, or use the still background, which keeps it as it is'
+            )
+    return found
+
+
+def _crossing_lines(constraints: Constraints) -> list[str]:
+    """Warnings for lines whose output images cross (their maps disagree: the blend folds between them)."""
+    controls = constraints.controls
+    curves = [controls[c].moebius(samples) for c, samples in constraints.lines]
+    found = []
+    for a, b in crossing_pairs(curves):
+        ha, hb = controls[constraints.lines[a][0]].handle, controls[constraints.lines[b][0]].handle
+        if ha != hb:
+            found.append(f"handles[{ha}] (line) and handles[{hb}] (line) cross each other in the output")
+    return sorted(set(found))
+
+
+def _previous_weights(previous: Solved | None, vertices: NDArray, faces: NDArray, b: NDArray, bc: NDArray) -> NDArray[np.float64] | None:
+    """The previous warp's raw weights when it solved exactly this weights problem, else None."""
+    if previous is None or previous.raw_weights is None:
+        return None
+    same = (
+        np.array_equal(previous.vertices, vertices)
+        and np.array_equal(previous.faces, faces)
+        and np.array_equal(previous.constrained, b)
+        and np.array_equal(previous.prescribed, bc)
+    )
+    return previous.raw_weights if same else None
+
+
+def _warm_start(previous: Solved | None, constraints: Constraints, vertices: NDArray) -> NDArray[np.float64] | None:
+    """The previous warp's raw weights interpolated at the new mesh's vertices, when its controls are the same ones."""
+    if previous is None or previous.raw_weights is None or len(previous.controls) != len(constraints.controls):
+        return None
+    if any(p.handle != c.handle or p.label != c.label for p, c in zip(previous.controls, constraints.controls, strict=True)):
+        return None
+    from scipy.spatial import cKDTree
+
+    # most vertices of the new mesh are vertices of the old one (the same icosphere, refined alike far from what moved)
+    distance, nearest = cKDTree(previous.vertices).query(vertices)
+    out = previous.raw_weights[nearest]
+    moved = np.flatnonzero(distance > 1e-12)
+    if len(moved):
+        face, bary = locate_points(previous.vertices, previous.faces, vertices[moved])
+        out[moved] = interpolate(previous.raw_weights, previous.faces, face, bary)
+    return out

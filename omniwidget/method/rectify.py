@@ -1,0 +1,475 @@
+"""Rectify all lines at once: the optimal control-point positions of Sec. 3.4, eqs. (5)-(12).
+
+Rectifying each line by eq. (4) alone keeps its endpoints and pulls its midpoint onto
+their chord, which makes close lines cross (the paper's Fig. 6). Here the output
+``[lon, lat]`` of every rectified line's three control points are unknowns of one linear
+least-squares problem, in the equirectangular plane:
+
+- relative positions (eqs. 5-8): for every sample ``i`` of a line ``k`` and every sample
+  ``j`` of another handle ``l`` closer than ``S_k / 4`` (``S_k`` the distance between
+  ``k``'s endpoints), their output offset should equal their input offset, with weight
+  ``(1/20)(1 - 4 r / S_k)^4``. A rectified line's output samples lie on the chord of its
+  output endpoints (``(1 - t) P1 + t P3``); the samples of handles that are not solved for
+  (lines that keep their map, point handles, cage edges) are where their maps put them;
+- rectification (eq. 9, weight 100): the midpoint on the middle of the endpoints;
+- keep in place (eq. 10, weight 0.3): each endpoint where the person put it; with the
+  still background (``keep="sphere"``, see :func:`solve_bones`) instead: the sphere near
+  the line where it was;
+- joints (eq. 11): the authors tie joined endpoints with weight 1000; here their
+  endpoints were already snapped to one point, so each joint is a single unknown (the
+  weight's limit) and a joint cannot open at all.
+
+All terms are in displacement form (output minus input), so longitudes are unwrapped per
+line and nothing depends on where the ±180° seam falls. The longitude and latitude
+problems share one symmetric positive definite matrix (every solved endpoint has a
+keep-in-place term), factored once and solved for both; with ``keep="sphere"`` the motion
+of the sphere ties them, and one system of twice the size is solved.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._checks import whole_number
+from ..sphere import coords
+from ..sphere.moebius import Moebius
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+__all__ = [
+    "KEEP_WEIGHT",
+    "MOTION_WEIGHT",
+    "NEAR_LINE",
+    "RECTIFY_WEIGHT",
+    "RELATIVE_WEIGHT",
+    "Anchor",
+    "Bone",
+    "RectifySolution",
+    "line_neighbourhood",
+    "motion_metric",
+    "solve_bones",
+]
+
+#: Eq. (9): weight of a rectified line's midpoint on the middle of its endpoints.
+RECTIFY_WEIGHT = 100.0
+#: With ``keep="points"`` or ``"sphere"`` the middle's place is kept too, against eq. (9):
+#: that weight is then this many times larger, so that the line stays straight to about 1e-6 degrees.
+LEAST_MOTION_STIFFNESS = 1e6
+#: Eq. (10): weight of each solved endpoint staying where it was.
+KEEP_WEIGHT = 0.3
+#: Eq. (8): the relative-position weight at distance 0.
+RELATIVE_WEIGHT = 1.0 / 20.0
+#: With ``keep="sphere"``: the sphere within this many degrees of a line is what its map
+#: should move least (the choice measured best, ``bench/bench_line_maps.py``).
+NEAR_LINE = 4.0
+#: With ``keep="sphere"``: the weight of that motion (mean squared, degrees), 10 times an
+#: endpoint's :data:`KEEP_WEIGHT`. More outweighs eq. (8) where lines meet, as in Fig. 6:
+#: at 30 times the sides' tops come within 0.4° of the top edge, at 100 times they fold.
+MOTION_WEIGHT = 10 * KEEP_WEIGHT
+
+
+@dataclass(frozen=True)
+class Bone:
+    """A line (or a piece of one, after crossings are split) in the solve.
+
+    Attributes
+    ----------
+    start, end : tuple of float
+        Input ``[lon, lat]`` in degrees (joined ends already snapped together).
+    free : bool
+        Solved for (a rectified line) or kept (its output is ``outputs``).
+    joints : tuple of (int or None, int or None)
+        Joint ids of the start and end: equal ids are one point.
+    outputs : ndarray of float64, shape (s, 2) or None
+        For a kept bone, where its ``s`` samples (``geodesic(start, end, linspace(0, 1, s))``) land.
+    """
+
+    start: tuple[float, float]
+    end: tuple[float, float]
+    free: bool
+    joints: tuple[int | None, int | None] = (None, None)
+    outputs: NDArray[np.float64] | None = None
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """Samples of a handle that is not solved for (a point handle, a cage edge) and where they go.
+
+    Attributes
+    ----------
+    inputs, outputs : ndarray of float64, shape (s, 2)
+        ``[lon, lat]`` in degrees, in order along the handle (one row for a point).
+    """
+
+    inputs: NDArray[np.float64]
+    outputs: NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class RectifySolution:
+    """The solved control points.
+
+    Attributes
+    ----------
+    targets : list of ndarray or None
+        Per bone: the output start, middle and end ``[lon, lat]`` (3, 2) of a free bone,
+        None for a kept one.
+    matrix : scipy.sparse.csr_matrix, shape (n, n)
+        The normal matrix of the least-squares problem (one coordinate), for inspection.
+    displacement : float
+        Mean distance in degrees between the solved endpoints and their input positions.
+    """
+
+    targets: list[NDArray[np.float64] | None]
+    matrix: sp.csr_matrix
+    displacement: float
+
+
+class _Rows:
+    """Residual rows ``Σ coef · x + const`` (lon and lat constants apart), weighted, in COO form."""
+
+    def __init__(self) -> None:
+        self.row: list[NDArray] = []
+        self.col: list[NDArray] = []
+        self.val: list[NDArray] = []
+        self.const: list[NDArray] = []  # (r, 2)
+        self.weight: list[NDArray] = []
+        self.count = 0
+
+    def add(self, entries: Sequence[tuple[NDArray, NDArray]], const: NDArray, weight: NDArray) -> None:
+        """Add ``r`` rows; each entry is (variable index per row, coefficient per row), -1 = none."""
+        r = len(weight)
+        ids = np.arange(self.count, self.count + r)
+        for var, coef in entries:
+            var, coef = np.broadcast_to(var, (r,)), np.broadcast_to(coef, (r,))
+            used = var >= 0
+            self.row.append(ids[used])
+            self.col.append(var[used])
+            self.val.append(coef[used])
+        self.const.append(np.broadcast_to(const, (r, 2)))
+        self.weight.append(np.broadcast_to(weight, (r,)))
+        self.count += r
+
+
+def _slots(bones: Sequence[Bone]) -> tuple[NDArray, NDArray, int]:
+    """Unknown index of each free bone's (start, middle, end), -1 where kept, and the known values.
+
+    Returns ``var`` (b, 3) int, ``known`` (b, 3, 2) float (each free bone's control points in
+    its own unwrapped frame; a joint with a kept bone takes that bone's output), and the
+    number of unknowns.
+    """
+    var = np.full((len(bones), 3), -1, dtype=np.int64)
+    known = np.zeros((len(bones), 3, 2))
+    fixed_joint: dict[int, NDArray] = {}
+    for b in bones:
+        if not b.free:
+            for e, j in ((0, b.joints[0]), (-1, b.joints[1])):
+                if j is not None:
+                    fixed_joint[j] = b.outputs[e]
+    joint_var: dict[int, int] = {}
+    n = 0
+    for k, b in enumerate(bones):
+        if not b.free:
+            continue
+        known[k] = _inputs(b)
+        for s, j in ((0, b.joints[0]), (2, b.joints[1])):
+            if j is not None and j in fixed_joint:
+                out = fixed_joint[j]
+                known[k, s] = (coords.unwrap_lon(out[0], known[k, s, 0]), out[1])  # a known output, not an unknown
+            elif j is not None and j in joint_var:
+                var[k, s] = joint_var[j]
+            else:
+                var[k, s] = n
+                if j is not None:
+                    joint_var[j] = n
+                n += 1
+        var[k, 1] = n
+        n += 1
+    return var, known, n
+
+
+def _along(points: NDArray[np.float64]) -> float:
+    """Where the middle control point lies along the chord of the other two: the parameter of its projection, in [0.2, 0.8].
+
+    ``points`` is (3, 2): start, middle, end in one unwrapped lon/lat frame.
+    """
+    chord = points[2] - points[0]
+    length = float(chord @ chord)
+    t = float((points[1] - points[0]) @ chord / length) if length > 0 else 0.5
+    return min(max(t, 0.2), 0.8)
+
+
+def line_neighbourhood(
+    start: ArrayLike, end: ArrayLike, radius: float, step: float = 0.5
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Points of the sphere within ``radius`` degrees of the geodesic from ``start`` to ``end``, with their areas.
+
+    Parameters
+    ----------
+    start, end : array_like, shape (2,)
+        ``[lon, lat]`` in degrees, neither equal nor antipodal.
+    radius : float
+        Degrees, more than 0.
+    step : float
+        Grid spacing in degrees, along the line and across it.
+
+    Returns
+    -------
+    xyz : ndarray of float64, shape (m, 3)
+        Unit vectors of a grid in the frame where the line runs along the equator.
+    area : ndarray of float64, shape (m,)
+        Their share of the neighbourhood's area (summing to 1).
+    """
+    if not (radius > 0 and step > 0):
+        raise ValueError(f"radius and step must be positive, got {radius!r} and {step!r}")
+    a, b = coords.lonlat_to_xyz(start), coords.lonlat_to_xyz(end)
+    normal = np.cross(a, b)
+    if np.linalg.norm(normal) < 1e-12:
+        raise ValueError("the line's start and end coincide or are antipodal")
+    normal /= np.linalg.norm(normal)
+    across = np.cross(normal, a)
+    length = math.atan2(float(b @ across), float(b @ a))
+    along, off = np.meshgrid(
+        np.radians(np.arange(-radius, math.degrees(length) + radius + step / 2, step)),
+        np.radians(np.arange(-radius, radius + step / 2, step)),
+    )
+    near = np.cos(off) * np.cos(along - np.clip(along, 0.0, length)) >= math.cos(math.radians(radius))
+    along, off = along[near], off[near]
+    xyz = np.cos(off)[:, None] * (np.cos(along)[:, None] * a + np.sin(along)[:, None] * across) + np.sin(off)[:, None] * normal
+    return xyz, np.cos(off) / np.cos(off).sum()
+
+
+def motion_metric(points: ArrayLike, radius: float = NEAR_LINE, step: float = 0.5) -> NDArray[np.float64]:
+    """How much a line's map moves the sphere near the line, to second order in its control points' motion.
+
+    Parameters
+    ----------
+    points : array_like, shape (3, 2)
+        The line's start, middle and end ``[lon, lat]`` in degrees, as in its input.
+    radius : float
+        The part of the sphere within this many degrees of the line (the geodesic from
+        start to end) is measured.
+    step : float
+        Spacing of the measuring grid, degrees.
+
+    Returns
+    -------
+    ndarray of float64, shape (6, 6)
+        ``G`` such that ``d @ G @ d`` is the area-weighted mean of ``|M(p) - p|^2``
+        (degrees squared) over that part of the sphere, for the Möbius map ``M`` sending the
+        three points to themselves plus ``d``, ordered (lon of start, middle, end, lat of
+        start, middle, end), as ``d`` goes to 0.
+
+    Notes
+    -----
+    A map that straightens a line is fixed by three target points, but the line is just as
+    straight for any targets on one straight segment: which point stays and where the
+    segment lies are a choice. Its quadratic part (how much the map bends) is fixed by the
+    line's own bow; this metric lets the least-squares of :func:`solve_bones` take the
+    targets whose map moves the sphere around the line least.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    if points.shape != (3, 2) or not np.all(np.isfinite(points)):
+        raise ValueError(f"points must be three finite [lon, lat] rows, got shape {points.shape}")
+    grid, area = line_neighbourhood(points[0], points[2], radius, step)
+    h = 1e-4  # degrees: one-sided differences of the motion in each of the six coordinates
+    jacobian = np.empty((grid.size, 6))
+    for j in range(6):
+        moved = points.copy()
+        moved[j % 3, j // 3] += h
+        jacobian[:, j] = ((Moebius.from_points(points, moved).apply_xyz(grid) - grid) * (math.degrees(1.0) / h)).ravel()
+    area = np.repeat(area, 3)
+    return jacobian.T @ (area[:, None] * jacobian)
+
+
+def solve_bones(
+    bones: Sequence[Bone],
+    anchors: Sequence[Anchor] = (),
+    samples: int = 50,
+    *,
+    keep: Literal["endpoints", "points", "sphere"] = "endpoints",
+) -> RectifySolution:
+    """Solve Sec. 3.4's least squares for the free bones' output control points.
+
+    Parameters
+    ----------
+    bones : sequence of Bone
+    anchors : sequence of Anchor
+        Point handles and cage edges, which keep their own outputs and take part in the
+        relative-position terms.
+    samples : int
+        Samples per bone in the relative-position terms (the paper's 50).
+    keep : {"endpoints", "points", "sphere"}
+        What each line keeps in place while it is made straight:
+
+        - ``"endpoints"``: eqs. (9)-(10) as the paper writes them: the middle goes to the
+          middle of the output chord, the endpoints keep their places (weight
+          :data:`KEEP_WEIGHT`);
+        - ``"points"``: the middle goes to the point of the output chord at the parameter
+          where it lies along the input chord (:data:`LEAST_MOTION_STIFFNESS` times eq. (9)'s
+          weight), and all three control points keep their places alike, so the correction
+          is shared;
+        - ``"sphere"`` (the still background's): as ``"points"``, and the control points
+          also move so that the line's map moves the sphere within :data:`NEAR_LINE`
+          degrees of the line least (:func:`motion_metric`, weight :data:`MOTION_WEIGHT`).
+          That is where the background's weight changes, and there the blend's distortion
+          is about the map's motion times the weight's gradient.
+
+    Returns
+    -------
+    RectifySolution
+    """
+    samples = whole_number(samples, "samples", 2)
+    if keep not in ("endpoints", "points", "sphere"):
+        raise ValueError(f'keep must be "endpoints", "points" or "sphere", got {keep!r}')
+    import scipy.sparse as sp
+    from scipy.linalg import cho_factor, cho_solve
+    from scipy.spatial import cKDTree
+
+    var, known, n = _slots(bones)
+    t = np.linspace(0.0, 1.0, samples)
+    # every participant's samples, their displacement where known, and how free bones move them
+    inputs, disp, owner, param, free = [], [], [], [], []
+    spans: list[float] = []
+    for k, b in enumerate(bones):
+        src = coords.geodesic(b.start, b.end, t)
+        src[:, 0] = coords.unwrap_lon(src[:, 0], known[k, 0, 0] if b.free else src[0, 0])
+        if b.free:
+            d = np.zeros((samples, 2))
+        else:
+            d = np.stack([coords.wrap_lon(b.outputs[:, 0] - src[:, 0]), b.outputs[:, 1] - src[:, 1]], axis=1)
+        inputs.append(src)
+        disp.append(d)
+        owner.append(np.full(samples, k))
+        param.append(t)
+        free.append(np.full(samples, b.free))
+        spans.append(float(np.hypot(coords.wrap_lon(src[-1, 0] - src[0, 0]), src[-1, 1] - src[0, 1])))
+    for a, anchor in enumerate(anchors):
+        src = np.asarray(anchor.inputs, np.float64).reshape(-1, 2)
+        out = np.asarray(anchor.outputs, np.float64).reshape(-1, 2)
+        inputs.append(src)
+        disp.append(np.stack([coords.wrap_lon(out[:, 0] - src[:, 0]), out[:, 1] - src[:, 1]], axis=1))
+        owner.append(np.full(len(src), len(bones) + a))
+        param.append(np.linspace(0.0, 1.0, len(src)) if len(src) > 1 else np.zeros(1))
+        free.append(np.zeros(len(src), dtype=bool))
+        spans.append(float(np.hypot(coords.wrap_lon(src[-1, 0] - src[0, 0]), src[-1, 1] - src[0, 1])) if len(src) > 1 else 0.0)
+    inputs_all, disp_all = np.concatenate(inputs), np.concatenate(disp)
+    owner_all, param_all, free_all = np.concatenate(owner), np.concatenate(param), np.concatenate(free)
+    bone_of = np.where(owner_all < len(bones), owner_all, 0)
+
+    def moved(idx: NDArray, sign: float) -> tuple[list[tuple[NDArray, NDArray]], NDArray]:
+        """Entries and known part of ``sign * displacement`` of samples ``idx``."""
+        is_free = free_all[idx]
+        k, tt = bone_of[idx], param_all[idx]
+        v0, v2 = np.where(is_free, var[k, 0], -1), np.where(is_free, var[k, 2], -1)
+        # free: the chord of its control points (x = 0 at `known`) minus the input sample; a
+        # slot joined to a kept bone has no unknown and sits in `known`. Kept: its displacement.
+        chord = (1 - tt)[:, None] * known[k, 0] + tt[:, None] * known[k, 2]
+        const = np.where(is_free[:, None], chord - inputs_all[idx], disp_all[idx])
+        return [(v0, sign * (1 - tt) * is_free), (v2, sign * tt * is_free)], sign * const
+
+    rows = _Rows()
+    metrics: list[tuple[int, NDArray[np.float64]]] = []  # keep="sphere": (bone, motion metric)
+    # every pair of samples of different handles closer than S_k / 4 (eq. 8), one of them solved for
+    span_all = np.asarray(spans)[owner_all]
+    east = np.mod(inputs_all[:, 0], 360.0)
+    east[east >= 360.0] = 0.0  # a tiny negative longitude rounds to 360, outside the periodic box
+    plane = np.stack([east, inputs_all[:, 1] + 90.0], axis=1)
+    tree = cKDTree(plane, boxsize=[360.0, 1e6])  # longitude periodic: the seam is nothing special
+    asking = np.flatnonzero(span_all > 0)
+    found = tree.query_ball_point(plane[asking], span_all[asking] / 4)
+    i = np.repeat(asking, [len(f) for f in found])
+    j = np.fromiter(itertools.chain.from_iterable(found), dtype=np.int64, count=len(i))
+    pair = (owner_all[i] != owner_all[j]) & (free_all[i] | free_all[j])
+    i, j = i[pair], j[pair]
+    if len(i):
+        gap = inputs_all[i] - inputs_all[j]
+        r = np.hypot(coords.wrap_lon(gap[:, 0]), gap[:, 1])
+        w = RELATIVE_WEIGHT * np.clip(1 - 4 * r / span_all[i], 0.0, None) ** 4
+        entries_i, const_i = moved(i, 1.0)
+        entries_j, const_j = moved(j, -1.0)
+        rows.add(entries_i + entries_j, const_i + const_j, w)
+    for k, b in enumerate(bones):
+        if not b.free:
+            continue
+        v, p = var[k], known[k]
+        t = 0.5 if keep == "endpoints" else _along(p)
+        rows.add(  # eq. (9): middle - ((1 - t) start + t end), t = 1/2 in the paper
+            [(v[1:2], np.ones(1)), (v[0:1], np.full(1, t - 1.0)), (v[2:3], np.full(1, -t))],
+            (p[1] - (1.0 - t) * p[0] - t * p[2])[None],
+            np.full(1, RECTIFY_WEIGHT * (1.0 if keep == "endpoints" else LEAST_MOTION_STIFFNESS)),
+        )
+        if keep == "sphere":
+            metrics.append((k, motion_metric(_inputs(b), NEAR_LINE)))
+        for s in (0, 2) if keep == "endpoints" else (0, 1, 2):  # eq. (10): the endpoints stay (and the middle)
+            rows.add([(v[s : s + 1], np.ones(1))], np.zeros((1, 2)), np.full(1, KEEP_WEIGHT))
+    a = sp.csr_matrix((np.concatenate(rows.val), (np.concatenate(rows.row), np.concatenate(rows.col))), shape=(rows.count, n))
+    w = np.concatenate(rows.weight)
+    const = np.concatenate(rows.const)
+    q = (a.T @ sp.diags(w) @ a).tocsc()
+    rhs = -(a.T @ (w[:, None] * const))
+    x = np.zeros((n, 2))
+    if n and metrics:
+        x = _solve_coupled(q.toarray(), rhs, metrics, var, known, bones)
+    elif n:
+        x = cho_solve(cho_factor(q.toarray()), rhs)  # n is 3 per line: small and dense is fastest
+    targets: list[NDArray[np.float64] | None] = []
+    moved_by = []
+    for k, b in enumerate(bones):
+        if not b.free:
+            targets.append(None)
+            continue
+        out = known[k] + np.where(var[k][:, None] >= 0, x[np.maximum(var[k], 0)], 0.0)
+        moved_by.extend(coords.angular_distance(out[[0, 2]], known[k][[0, 2]]))
+        out[:, 0] = coords.wrap_lon(out[:, 0])
+        targets.append(out)
+    return RectifySolution(targets, q.tocsr(), float(np.mean(moved_by)) if moved_by else 0.0)
+
+
+def _inputs(bone: Bone) -> NDArray[np.float64]:
+    """A bone's input start, geodesic middle and end, (3, 2), longitudes unwrapped at the start."""
+    points = np.stack(
+        [np.asarray(bone.start, np.float64), coords.geodesic_midpoint(bone.start, bone.end), np.asarray(bone.end, np.float64)]
+    )
+    points[:, 0] = coords.unwrap_lon(points[:, 0], points[0, 0])
+    return points
+
+
+def _solve_coupled(
+    q: NDArray[np.float64],
+    rhs: NDArray[np.float64],
+    metrics: Sequence[tuple[int, NDArray[np.float64]]],
+    var: NDArray[np.int64],
+    known: NDArray[np.float64],
+    bones: Sequence[Bone],
+) -> NDArray[np.float64]:
+    """The least squares with motion metrics, which tie longitude to latitude: one (2n, 2n) system.
+
+    ``q`` (n, n) and ``rhs`` (n, 2) are the separable rows' normal equations (with every
+    control point's keep term, so the system is definite); each metric
+    adds ``(c + P x) @ (MOTION_WEIGHT G) @ (c + P x)``, where ``c`` is how far a control
+    point joined to a kept bone already sits from the input. Returns x, (n, 2).
+    """
+    from scipy.linalg import cho_factor, cho_solve
+
+    n = len(q)
+    big = np.zeros((2 * n, 2 * n))
+    big[:n, :n] = big[n:, n:] = q
+    right = np.concatenate([rhs[:, 0], rhs[:, 1]])
+    for k, metric in metrics:
+        g = MOTION_WEIGHT * metric
+        index = np.concatenate([var[k], np.where(var[k] >= 0, var[k] + n, -1)])
+        unknown = index >= 0
+        offset = (known[k] - _inputs(bones[k])).T.ravel() * ~unknown  # lon then lat, as in the metric
+        big[np.ix_(index[unknown], index[unknown])] += g[np.ix_(unknown, unknown)]
+        right[index[unknown]] -= (g @ offset)[unknown]
+    solution = cho_solve(cho_factor(big), right)
+    return np.stack([solution[:n], solution[n:]], axis=1)

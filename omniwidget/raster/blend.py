@@ -1,0 +1,151 @@
+"""The blend of eq. (2): each output direction's source is the weighted sum of the controls' inverse maps.
+
+``T⁻¹(p) = normalize(Σ_j W_j(p) M_j⁻¹(p))``: the weights are interpolated from the mesh
+at ``p`` (barycentric on the triangle whose cone contains ``p``), each inverse map is
+applied as a 3D unit vector, and the sum is normalised back onto the sphere. A control
+whose weight is negligible over a whole block of rows costs nothing there.
+
+For teaching, the authors' two shortcuts can be switched on: ``projection="asin"`` takes
+the latitude as ``asin`` of the un-normalised sum's ``z`` (a bias towards the equator
+wherever the maps disagree), and :func:`grid_pixel_weights` interpolates the weights from
+a coarse longitude/latitude grid (their 150 x 75) instead of the mesh.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..method.locate import interpolate
+from ..sphere import coords
+from ..sphere.moebius import Moebius
+from .warping import GridInverse, grid_homogeneous
+
+__all__ = ["NEGLIGIBLE", "PixelWeights", "blended_inverse", "grid_pixel_weights", "mesh_pixel_weights"]
+
+#: A control whose normalised weight stays below this over a block of rows is skipped there.
+NEGLIGIBLE = 1e-6
+
+
+#: ``fn(rows) -> (h, W, k)`` weights of the output pixels in a block of rows.
+PixelWeights = Callable[[slice], NDArray[np.floating]]
+
+
+def mesh_pixel_weights(
+    faces: NDArray[np.int64],
+    vertex_weights: NDArray[np.floating],
+    face: NDArray[np.int32],
+    bary: NDArray[np.float32],
+    dtype: type[np.floating] = np.float32,
+) -> PixelWeights:
+    """Pixel weights interpolated from the mesh: barycentric on each pixel's triangle.
+
+    Parameters
+    ----------
+    faces : ndarray of int64, shape (m, 3)
+        The mesh's faces.
+    vertex_weights : ndarray, shape (n, k)
+        Normalised weights per mesh vertex (rows sum to 1).
+    face, bary : ndarray, shapes (H, W) and (H, W, 3)
+        For each output pixel, its mesh face and barycentric coordinates
+        (:func:`omniwidget.method.locate.locate_grid`).
+    dtype : numpy floating type
+    """
+    weights = np.ascontiguousarray(vertex_weights, dtype=dtype)
+    return lambda rows: interpolate(weights, faces, face[rows], bary[rows])
+
+
+def grid_pixel_weights(
+    vertices: NDArray[np.float64], faces: NDArray[np.int64], vertex_weights: NDArray[np.floating], width: int, grid: int = 150
+) -> PixelWeights:
+    """Pixel weights interpolated bilinearly from a ``grid`` x ``grid / 2`` longitude/latitude grid.
+
+    The authors' shortcut (150 x 75): the weights are evaluated on the mesh at the grid's
+    nodes only, so they blur wherever they change fast, which is along the handles.
+
+    Parameters
+    ----------
+    vertices, faces : ndarray, shapes (n, 3) and (m, 3)
+    vertex_weights : ndarray, shape (n, k)
+    width : int
+        Output width.
+    grid : int
+        Grid nodes around the equator (even); nodes sit at pixel centres of a ``grid``
+        wide equirectangular image.
+    """
+    from ..method.locate import locate_points
+
+    lon, lat = coords.grid_lonlat(grid)
+    nodes = coords.lonlat_to_xyz(np.stack(np.meshgrid(lon, lat), axis=-1)).reshape(-1, 3)
+    face, bary = locate_points(vertices, faces, nodes)
+    at_nodes = interpolate(np.asarray(vertex_weights, np.float64), faces, face, bary).reshape(grid // 2, grid, -1)
+    at_nodes = np.concatenate([at_nodes, at_nodes[:, :1]], axis=1)  # wrap at the seam
+    x = (np.arange(width) + 0.5) * grid / width - 0.5
+    x0 = np.floor(x).astype(np.int64)
+    fx = (x - x0)[None, :, None]
+    x0 %= grid
+
+    def fn(rows: slice) -> NDArray[np.float64]:
+        y = np.clip((np.arange(width // 2)[rows] + 0.5) * grid / width - 0.5, 0, grid // 2 - 1)
+        y0 = np.minimum(np.floor(y).astype(np.int64), grid // 2 - 2)
+        fy = (y - y0)[:, None, None]
+        top = at_nodes[y0][:, x0] * (1 - fx) + at_nodes[y0][:, x0 + 1] * fx
+        bottom = at_nodes[y0 + 1][:, x0] * (1 - fx) + at_nodes[y0 + 1][:, x0 + 1] * fx
+        return top * (1 - fy) + bottom * fy
+
+    return fn
+
+
+def blended_inverse(
+    inverses: Sequence[Moebius],
+    pixel_weights: PixelWeights,
+    precision: Literal["double", "single"] = "single",
+    projection: Literal["normalize", "asin"] = "normalize",
+) -> GridInverse:
+    """The blended inverse map of eq. (2) as a grid evaluator.
+
+    Parameters
+    ----------
+    inverses : sequence of Moebius
+        ``M_j⁻¹`` for the ``k`` controls.
+    pixel_weights : PixelWeights
+        The controls' weights at the output pixels, usually :func:`mesh_pixel_weights`.
+    precision : {"double", "single"}
+        Arithmetic of the per-pixel work.
+    projection : {"normalize", "asin"}
+        How the weighted sum of unit vectors returns to the sphere: normalised (ours), or
+        the authors' ``asin`` of its ``z`` (biased towards the equator where maps disagree).
+
+    Returns
+    -------
+    GridInverse
+        ``fn(lon, lat, rows) -> (src_lon, src_lat)`` in radians.
+    """
+    if projection not in ("normalize", "asin"):
+        raise ValueError(f"projection must be 'normalize' or 'asin', got {projection!r}")
+    real = np.float64 if precision == "double" else np.float32
+
+    def fn(lon: NDArray[np.float64], lat: NDArray[np.float64], rows: slice) -> tuple[NDArray, NDArray]:
+        w = pixel_weights(rows)  # (h, W, k)
+        if w.shape[-1] != len(inverses):
+            raise ValueError(f"{len(inverses)} maps but {w.shape[-1]} weights per pixel")
+        acc_xy = np.zeros((len(lat), len(lon)), np.complex128 if precision == "double" else np.complex64)
+        acc_z = np.zeros((len(lat), len(lon)), real)
+        for j, m in enumerate(inverses):
+            wj = w[..., j]
+            if not wj.max() > NEGLIGIBLE:
+                continue
+            big_u, big_v = grid_homogeneous(m, lon, lat, precision)
+            uu = big_u.real**2 + big_u.imag**2
+            vv = big_v.real**2 + big_v.imag**2
+            s = wj / (uu + vv)  # unit vector: (2 U V̄, |U|² - |V|²) / (|U|² + |V|²)
+            acc_xy += (2 * s) * (big_u * np.conj(big_v))
+            acc_z += s * (uu - vv)
+        if projection == "asin":
+            return np.angle(acc_xy), np.arcsin(np.clip(acc_z, -1, 1))
+        return np.angle(acc_xy), np.arctan2(acc_z, np.abs(acc_xy))
+
+    return fn

@@ -1,0 +1,296 @@
+"""From an image and a handles document to the output image: the method's deformation applied to every pixel.
+
+:func:`warp` asks the method for the deformation (:func:`omniwidget.method.deformation.deform`),
+evaluates its blend of eq. (2) at every output pixel (:func:`blend_coordinates`: the compiled
+kernels when they are there, numpy otherwise, chosen here only), resamples the input there
+(:mod:`.warping`) and checks for fold-overs (:mod:`.fold`). A :class:`Result` keeps every
+stage for inspection and teaching.
+"""
+
+from __future__ import annotations
+
+import threading
+import warnings
+from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._timing import Laps
+from ..document.handles import Handles
+from ..method.background import BACKGROUND
+from ..method.constraints import SAMPLES, Control
+from ..method.deformation import Deformation, deform
+from ..method.locate import interpolate, locate_grid
+from ..sphere.moebius import Moebius
+from . import _kernels
+from .blend import blended_inverse, mesh_pixel_weights
+from .fold import FoldOver, fold_of_coordinates
+from .sampled import coarse_step, sampled_coordinates
+from .warping import (
+    GridInverse,
+    Order,
+    check_warp_arguments,
+    grid_inverse,
+    inverse_lonlat,
+    pad_panorama,
+    remap,
+    remap_coordinates,
+    warp_moebius,
+)
+
+if TYPE_CHECKING:
+    from ..evaluate.quality import Summary
+
+__all__ = ["FOLD_WARNING_AREA", "BlendWarning", "Result", "blend_coordinates", "warp"]
+
+#: Fold-overs covering at least this share of the sphere are reported as a BlendWarning
+#: (1e-5 is about 20 pixels at 2048 x 1024); smaller ones only show in ``Result.folds``.
+FOLD_WARNING_AREA = 1e-5
+
+
+class _measured_once:
+    """A property computed when first asked and kept in the instance, like :func:`functools.cached_property`.
+
+    Without its lock: up to Python 3.11 that lock is one per class, so one result's quality
+    measured in the editor's thread made every other result's wait (a notebook with several
+    editors). Two threads asking at once may both compute it; the figures are the same.
+    """
+
+    def __init__(self, fn: Any) -> None:
+        self.fn, self.name, self.__doc__ = fn, fn.__name__, fn.__doc__
+
+    def __get__(self, obj: Any, owner: type | None = None) -> Any:
+        if obj is None:
+            return self
+        if self.name not in obj.__dict__:
+            obj.__dict__[self.name] = self.fn(obj)
+        return obj.__dict__[self.name]
+
+
+class BlendWarning(UserWarning):
+    """Handles whose constraints conflict (the paper's Fig. 15); the result is still an image."""
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class Result(Deformation):
+    """Everything a warp computed: the method's :class:`~omniwidget.method.deformation.Deformation` and the image.
+
+    Every attribute of the deformation is here (``handles``, ``constraints``, the mesh
+    ``vertices`` and ``faces``, ``constrained``, ``prescribed``, ``weights``,
+    ``raw_weights``; ``warnings`` also has the fold-overs found; ``timings`` every stage's),
+    and its methods (``controls``, ``moebius``, ``inverse_points``, ``forward_points``).
+
+    Attributes
+    ----------
+    image : ndarray, shape (H, W[, C])
+        The output panorama, in the input's dtype.
+    inverse : GridInverse
+        The blended inverse map on the output grid, in double precision (what
+        :meth:`inverse_map` evaluates).
+    source_width : int
+        Width of the input image.
+    folds : FoldOver
+        Where the output is turned over (:func:`omniwidget.raster.fold.fold_over`): a
+        mask and its share of the sphere; none for a single map.
+    """
+
+    image: NDArray
+    inverse: GridInverse = field(repr=False)
+    source_width: int
+    folds: FoldOver
+
+    @_measured_once
+    def quality(self) -> Summary:
+        """Every quality figure of this warp (:func:`omniwidget.evaluate.quality.summary`), measured when first asked.
+
+        Straightness of each line, conformal distortion (mean and 99th percentile), fold-over,
+        tear, coverage, the mean displacement of the sphere and the motion inside fixed cages;
+        ``result.quality.line()`` says it in one line.
+        """
+        from ..evaluate.quality import summary
+
+        return summary(self)
+
+    @_measured_once
+    def _inverse_map(self) -> NDArray[np.float64]:
+        inverse = inverse_lonlat(self.inverse, self.image.shape[1])
+        inverse.flags.writeable = False  # handed out as it is (float64): nobody may spoil the cache
+        return inverse
+
+    def inverse_map(self, dtype: type[np.floating] = np.float32) -> NDArray[np.floating]:
+        """For each output pixel centre, the input ``[lon, lat]`` (degrees) it shows, (H, W, 2).
+
+        Parameters
+        ----------
+        dtype : {numpy.float32, numpy.float64}
+            float64 for measurements (:mod:`omniwidget.evaluate.quality`); computed once, kept.
+        """
+        if dtype not in (np.float32, np.float64):
+            raise ValueError(f"dtype must be numpy.float32 or numpy.float64, got {dtype!r}")
+        return self._inverse_map.astype(dtype, copy=dtype is not np.float64)
+
+
+def _exact_inverse(
+    inverses: list[Moebius], vertices: NDArray[np.float64], faces: NDArray[np.int64], weights: NDArray[np.float64], width: int
+) -> GridInverse:
+    """The blended map at every pixel of the output grid, in double precision, located on the mesh when first asked."""
+    lock = threading.Lock()
+    cache: list[GridInverse] = []
+
+    def fn(lon: NDArray, lat: NDArray, rows: slice) -> tuple[NDArray, NDArray]:
+        with lock:
+            if not cache:
+                face, bary = locate_grid(vertices, faces, width)
+                cache.append(blended_inverse(inverses, mesh_pixel_weights(faces, weights, face, bary, np.float64), precision="double"))
+        return cache[0](lon, lat, rows)
+
+    return fn
+
+
+def blend_coordinates(
+    deformation: Deformation, width: int, src_width: int, *, exact: bool = False, timings: dict[str, float] | None = None
+) -> tuple[NDArray[np.float32], FoldOver, NDArray[np.float64] | None]:
+    """The deformation's inverse map on a ``width`` wide output grid, as source pixel coordinates for resampling.
+
+    The one place the per-pixel backend is chosen: the compiled kernels
+    (:mod:`._kernels`, evaluated on a coarse grid where that is exact enough,
+    :mod:`.sampled`) when they are there, else numpy (:mod:`.blend`). Both evaluate eq. (2)
+    as :meth:`Deformation.inverse_points` does.
+
+    Parameters
+    ----------
+    deformation : Deformation
+        With weights (not a single map).
+    width, src_width : int
+        Output and source widths.
+    exact : bool
+        Evaluate the blend at every output pixel, never on the coarse grid.
+    timings : dict, optional
+        Seconds per stage are added here: ``"locate"`` (numpy only: the compiled kernels
+        find each pixel's face as they blend), ``"blend"``, ``"fold check"``.
+
+    Returns
+    -------
+    coordinates : ndarray of float32, shape (width / 2, width, 2)
+        ``(x, y)`` in the source padded by :data:`~omniwidget.raster.warping.PAD`.
+    folds : FoldOver
+    at_folds : ndarray of float64, shape (f, k), or None
+        The controls' weights where the output folds (with the compiled kernels, one row:
+        each control's strongest weight there), for naming the handles in a warning; None
+        when it folds less than :data:`FOLD_WARNING_AREA`.
+    """
+    d = deformation
+    if d.vertices is None or d.faces is None or d.weights is None:
+        raise ValueError("the deformation has no weights: one Möbius map does it all (warp_moebius)")
+    laps = Laps(timings)
+    inverses = [c.moebius.inverse for c in d.controls]
+    if _kernels.available():
+        step = 1 if exact else coarse_step(width)
+        if step > 1:
+            coordinates, face, planes = sampled_coordinates(
+                inverses, d.vertices, d.faces, d.weights, width, src_width, step, d.constraints.points
+            )
+        else:
+            coordinates, face, planes = _kernels.walk_blend(d.vertices, d.faces, d.weights, inverses, width, src_width)
+        laps("blend")
+        folds = fold_of_coordinates(coordinates, src_width)
+        at_folds = None
+        if folds.area >= FOLD_WARNING_AREA:
+            where = folds.mask if step == 1 else folds.mask.reshape(face.shape[0], step, face.shape[1], step).any(axis=(1, 3))
+            at_folds = _kernels.strongest_weights(where, face, planes, d.faces, d.weights)[None]
+    else:
+        face, bary = locate_grid(d.vertices, d.faces, width)
+        laps("locate")
+        coordinates = remap_coordinates(blended_inverse(inverses, mesh_pixel_weights(d.faces, d.weights, face, bary)), width, src_width)
+        laps("blend")
+        folds = fold_of_coordinates(coordinates, src_width)
+        at_folds = interpolate(d.weights, d.faces, face[folds.mask], bary[folds.mask]) if folds.area >= FOLD_WARNING_AREA else None
+    laps("fold check")
+    return coordinates, folds, at_folds
+
+
+def _fold_warning(handles: Handles, controls: tuple[Control, ...], pixel_weights: NDArray, area: float) -> str:
+    """Name the handles whose weights are strong where the output folds, (pixels, k) weights."""
+    strong = np.flatnonzero(pixel_weights.max(axis=0) >= 0.1)
+    involved = sorted({controls[j].handle for j in strong} - {BACKGROUND})
+    names = [f"handles[{i}] ({handles.handles[i].kind})" for i in involved]
+    return (
+        f"the warp folds over near {' and '.join(names)}: {100 * area:.3g}% of the sphere is shown turned over "
+        "(Result.folds.mask shows where); their targets conflict, move them apart"
+    )
+
+
+def warp(
+    image: NDArray,
+    handles: Handles,
+    *,
+    width: int | None = None,
+    order: Order = "bilinear",
+    samples: int = SAMPLES,
+    warn: bool = True,
+    exact: bool = False,
+    previous: Result | None = None,
+) -> Result:
+    """Warp a panorama by any number of handles (the paper's method).
+
+    One map for everything (no handles, one point or line, handles that do not move) is
+    applied exactly, without a mesh; otherwise the controls' maps are blended by bounded
+    biharmonic weights.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W[, C])
+        Equirectangular, ``W = 2 H``; uint8, uint16, float32 or float64; 1 to 4 channels.
+    handles : Handles
+    width : int, optional
+        Output width (even); default: the input's.
+    order : {"nearest", "bilinear", "bicubic"}
+    samples : int
+        Points per line and cage edge in the boundary conditions (the paper's 50).
+    warn : bool
+        Issue conflicts as :class:`BlendWarning`; they are in ``Result.warnings`` either way
+        (the command line and the editor show them themselves).
+    exact : bool
+        Evaluate the blend at every output pixel. By default, with the compiled kernels and
+        an output at least :data:`omniwidget.raster.sampled.SAMPLE_FROM` wide, it is evaluated
+        on a coarser grid and interpolated where that is within a quarter of a pixel, and
+        exactly near the handles (:mod:`omniwidget.raster.sampled`). ``Result.inverse_map()``
+        and so every quality figure use the exact map either way.
+    previous : Result, optional
+        The warp of a similar document (the editor's last preview, say). When it solved the
+        same weights problem (the same mesh and boundary conditions: the same handles, at
+        any output size) its weights are taken as they are; when its controls are the same
+        ones, its weights interpolated onto the new mesh start the solver
+        (:func:`omniwidget.method.deformation.deform`'s ``previous``).
+
+    Returns
+    -------
+    Result
+    """
+    if not isinstance(handles, Handles):
+        raise TypeError(f"handles must be a Handles document (see Handles.from_dict), got {type(handles).__name__}")
+    if previous is not None and not isinstance(previous, Result):
+        raise TypeError(f"previous must be a Result of an earlier warp, got {type(previous).__name__}")
+    width = check_warp_arguments(image, width, order)
+    d = deform(handles, samples=samples, previous=previous)
+    timings, problems = dict(d.timings), list(d.warnings)
+    if d.weights is None or d.vertices is None or d.faces is None:
+        laps = Laps(timings)
+        single = d.moebius or Moebius.identity()
+        out = warp_moebius(image, single, width=width, order=order).image
+        inverse, folds = grid_inverse(single.inverse), FoldOver.none(out.shape)
+        laps("resampling")
+    else:
+        coordinates, folds, at_folds = blend_coordinates(d, width, image.shape[1], exact=exact, timings=timings)
+        inverse = _exact_inverse([c.moebius.inverse for c in d.controls], d.vertices, d.faces, d.weights, width)
+        laps = Laps(timings)
+        out = remap(pad_panorama(image), coordinates, order)
+        laps("resampling")
+        if at_folds is not None:
+            problems.append(_fold_warning(handles, d.controls, at_folds, folds.area))
+    for p in problems if warn else ():
+        warnings.warn(p, BlendWarning, stacklevel=2)
+    kept = {f.name: getattr(d, f.name) for f in fields(Deformation)}
+    return Result(**{**kept, "warnings": tuple(problems), "timings": timings}, image=out, inverse=inverse, source_width=image.shape[1], folds=folds)

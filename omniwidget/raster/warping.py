@@ -1,0 +1,304 @@
+"""Warping an equirectangular image by an inverse map of the sphere.
+
+For each output pixel the inverse map gives the input direction it shows; the input is
+then resampled there (nearest, bilinear or bicubic) by OpenCV's ``remap``. The input is
+first padded so that sampling wraps across the ±180° seam and continues *over* the poles
+(the row above the top row is the top row half a turn away), so neighbourhoods are right
+everywhere on the sphere. The map is computed in blocks of rows, in two threads, straight
+into the float32 array ``remap`` reads: memory stays at a few bytes per pixel.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._checks import check_panorama, whole_number
+from ..errors import ImageError
+from ..sphere import coords
+from ..sphere.moebius import Moebius
+
+__all__ = [
+    "ORDERS",
+    "WarpResult",
+    "check_warp_arguments",
+    "grid_homogeneous",
+    "grid_inverse",
+    "inverse_lonlat",
+    "remap",
+    "remap_coordinates",
+    "warp_by_inverse",
+    "warp_moebius",
+]
+
+Order = Literal["nearest", "bilinear", "bicubic"]
+ORDERS: tuple[Order, ...] = ("nearest", "bilinear", "bicubic")
+#: Rows of source padding: bicubic reads two pixels beyond the sample on each side.
+PAD = 3
+BLOCK_ROWS = 128
+
+#: ``fn(lon, lat, rows) -> (src_lon, src_lat)``: the inverse map of a warp on a block of the
+#: output grid. Radians; ``lon`` shape (W,), ``lat`` shape (h,) for the output rows ``rows``
+#: (a slice); results shape (h, W).
+GridInverse = Callable[[NDArray[np.float64], NDArray[np.float64], slice], tuple[NDArray[np.floating], NDArray[np.floating]]]
+
+
+_PRECISION = {"double": (np.float64, np.complex128), "single": (np.float32, np.complex64)}
+
+
+def grid_homogeneous(
+    m: Moebius, lon: NDArray[np.float64], lat: NDArray[np.float64], precision: Literal["double", "single"] = "double"
+) -> tuple[NDArray, NDArray]:
+    """Apply ``m`` to a block of grid directions, in homogeneous coordinates ``[U : V]``.
+
+    Uses that grid rows share a latitude: each row's homogeneous coordinates are an outer
+    product, so the matrix acts on ``W + h`` numbers before the per-pixel work. Each row
+    takes the well-conditioned homogeneous form of its hemisphere (see
+    :func:`coords.xyz_to_homogeneous`), so nothing is singular at the poles.
+
+    Parameters
+    ----------
+    m : Moebius
+    lon : ndarray of float64, shape (W,)
+        Column longitudes, radians.
+    lat : ndarray of float64, shape (h,)
+        Row latitudes, radians, from north to south.
+    precision : {"double", "single"}
+        Arithmetic of the per-pixel work: complex128 or complex64.
+
+    Returns
+    -------
+    U, V : ndarray of complex, shape (h, W)
+    """
+    real, cplx = _PRECISION[precision]
+    (a, b), (c, d) = m.matrix.astype(cplx)
+    e = np.exp(1j * lon).astype(cplx)
+    ce = np.conj(e)
+    cos_lat, sin_lat = np.cos(lat).astype(real)[:, None], np.sin(lat).astype(real)[:, None]
+    k = int(np.count_nonzero(sin_lat > 0))  # rows run north to south: the first k are northern
+    if np.any(sin_lat[:k] <= 0) or np.any(sin_lat[k:] > 0):
+        raise ValueError("grid rows must run from north to south")
+    one = real(1.0)
+    big_u = np.empty((len(lat), len(lon)), cplx)
+    big_v = np.empty_like(big_u)
+    # northern rows: [u : v] = [1 + sin(lat) : cos(lat) conj(e)]
+    big_u[:k] = cos_lat[:k] * (b * ce) + a * (one + sin_lat[:k])
+    big_v[:k] = cos_lat[:k] * (d * ce) + c * (one + sin_lat[:k])
+    # southern rows: [u : v] = [cos(lat) e : 1 - sin(lat)]
+    big_u[k:] = cos_lat[k:] * (a * e) + b * (one - sin_lat[k:])
+    big_v[k:] = cos_lat[k:] * (c * e) + d * (one - sin_lat[k:])
+    return big_u, big_v
+
+
+def homogeneous_to_lonlat(big_u: NDArray, big_v: NDArray) -> tuple[NDArray, NDArray]:
+    """Longitude and latitude (radians) of homogeneous ``[U : V]``.
+
+    ``lon = arg(U V̄)``, ``lat = atan2(|U|² - |V|², 2 |U V̄|)``: exact at the poles.
+    """
+    w = big_u * np.conj(big_v)
+    uu = big_u.real**2 + big_u.imag**2
+    uu -= big_v.real**2 + big_v.imag**2
+    return np.arctan2(w.imag, w.real), np.arctan2(uu, 2 * np.abs(w))
+
+
+def grid_inverse(m: Moebius, precision: Literal["double", "single"] = "double") -> GridInverse:
+    """The grid evaluator of the Möbius map ``m`` (pass the *inverse* of the warp's map).
+
+    Parameters
+    ----------
+    m : Moebius
+    precision : {"double", "single"}
+        Arithmetic of the per-pixel work. ``"single"`` is faster and places samples far
+        closer than OpenCV's 1/32 px interpolation step (``tests/test_warp.py`` bounds the
+        difference): the warp uses it. Measurements of the map use ``"double"``.
+    """
+
+    def fn(
+        lon: NDArray[np.float64], lat: NDArray[np.float64], rows: slice | None = None
+    ) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
+        return homogeneous_to_lonlat(*grid_homogeneous(m, lon, lat, precision))
+
+    return fn
+
+
+def _blocks(height: int) -> list[slice]:
+    return [slice(s, min(s + BLOCK_ROWS, height)) for s in range(0, height, BLOCK_ROWS)]
+
+
+def run_blocks(height: int, work: Callable[[slice], None]) -> None:
+    blocks = _blocks(height)
+    threads = min(len(blocks), os.cpu_count() or 1, 4)
+    if threads <= 1:
+        for block in blocks:
+            work(block)
+        return
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(work, blocks))
+
+
+def inverse_lonlat(fn: GridInverse, width: int) -> NDArray[np.float64]:
+    """Evaluate an inverse map on the full output grid, in float64 degrees.
+
+    Parameters
+    ----------
+    fn : GridInverse
+    width : int
+        Output width; the height is ``width / 2``.
+
+    Returns
+    -------
+    ndarray of float64, shape (width / 2, width, 2)
+        For each output pixel centre, the input ``[lon, lat]`` it shows.
+    """
+    lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
+    out = np.empty((width // 2, width, 2))
+
+    def work(rows: slice) -> None:
+        src_lon, src_lat = fn(lon, lat[rows], rows)
+        out[rows, :, 0] = np.degrees(src_lon)
+        out[rows, :, 1] = np.degrees(src_lat)
+
+    run_blocks(width // 2, work)
+    return out
+
+
+def remap_coordinates(fn: GridInverse, width: int, src_width: int, offset: float = PAD) -> NDArray[np.float32]:
+    """Source pixel coordinates ``(x, y) + offset`` of every output pixel, float32 (H, W, 2)."""
+    lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
+    out = np.empty((width // 2, width, 2), dtype=np.float32)
+    kx = src_width / (2 * math.pi)
+    x0 = src_width / 2 - 0.5 + offset  # lon = 0 sits at x = W/2 - 0.5
+    y0 = src_width / 4 - 0.5 + offset  # lat = 0 sits at y = H/2 - 0.5
+
+    def work(rows: slice) -> None:
+        src_lon, src_lat = fn(lon, lat[rows], rows)
+        out[rows, :, 0] = src_lon * kx + x0
+        out[rows, :, 1] = y0 - src_lat * kx
+
+    run_blocks(width // 2, work)
+    return out
+
+
+def pad_panorama(image: NDArray, pad: int = PAD) -> NDArray:
+    """Pad a panorama by ``pad`` pixels: columns wrap at the seam, rows continue over the poles."""
+    h, w = image.shape[:2]
+    if w % 2 or h < 1 or pad < 0:
+        raise ImageError(f"cannot pad a {w} x {h} panorama by {pad} pixels")
+    half = w // 2
+    if not 0 < pad < h:  # a tiny panorama: a meridian goes over a pole and on within the padding (or no padding)
+        r = np.arange(-pad, h + pad) % (2 * h)
+        over = r >= h  # rows seen past a pole: half a turn away
+        rows = image[np.where(over, 2 * h - 1 - r, r)]
+        rows[over] = np.roll(rows[over], half, axis=1)
+        return rows[:, np.arange(-pad, w + pad) % w]
+    top = np.roll(image[pad - 1 :: -1], half, axis=1)  # row -1 is row 0 half a turn away, ...
+    bottom = np.roll(image[h - 1 : h - pad - 1 : -1], half, axis=1)
+    rows = np.concatenate([top, image, bottom], axis=0)
+    return np.concatenate([rows[:, w - pad :], rows, rows[:, :pad]], axis=1)
+
+
+def remap(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bilinear") -> NDArray:
+    """Sample a padded panorama at float32 pixel coordinates with OpenCV.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H + 2 PAD, W + 2 PAD[, C])
+        Output of :func:`pad_panorama`.
+    coordinates : ndarray of float32, shape (h, w, 2)
+        ``(x, y)`` in the padded image.
+    order : {"nearest", "bilinear", "bicubic"}
+
+    Returns
+    -------
+    ndarray, shape (h, w[, C]), the image's dtype
+    """
+    import cv2
+
+    if order not in ORDERS:
+        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
+    interpolation = {"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR, "bicubic": cv2.INTER_CUBIC}[order]
+    if image.ndim == 3 and image.shape[2] == 2:  # OpenCV samples two channels on a coarser grid (1/32 pixel): one at a time
+        return np.dstack([remap(np.ascontiguousarray(image[..., k]), coordinates, order) for k in range(2)])
+    out = cv2.remap(image, coordinates, None, interpolation, borderMode=cv2.BORDER_REPLICATE)
+    if image.ndim == 3 and out.ndim == 2:  # OpenCV drops a single channel axis
+        out = out[..., None]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class WarpResult:
+    """The output of a warp.
+
+    Attributes
+    ----------
+    image : ndarray, shape (H, W[, C])
+        The warped panorama, in the input's dtype and channels.
+    moebius : Moebius
+        The map from the input sphere to the output sphere.
+    source_width : int
+        Width of the input image.
+    """
+
+    image: NDArray
+    moebius: Moebius
+    source_width: int
+
+    def inverse_map(self, dtype: type[np.floating] = np.float32) -> NDArray[np.floating]:
+        """For each output pixel centre, the input ``[lon, lat]`` in degrees it shows, (H, W, 2).
+
+        Longitudes are in ``[-180, 180]``.
+
+        Parameters
+        ----------
+        dtype : {numpy.float32, numpy.float64}
+            float64 for measurements (:mod:`omniwidget.evaluate.quality`), as ``Result.inverse_map``.
+        """
+        if dtype not in (np.float32, np.float64):
+            raise ValueError(f"dtype must be numpy.float32 or numpy.float64, got {dtype!r}")
+        width = self.image.shape[1]
+        return inverse_lonlat(grid_inverse(self.moebius.inverse), width).astype(dtype, copy=False)
+
+
+def warp_moebius(image: NDArray, moebius: Moebius, *, width: int | None = None, order: Order = "bilinear") -> WarpResult:
+    """Warp a panorama by one Möbius map of the sphere.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W[, C])
+        Equirectangular, ``W = 2 H``; uint8, uint16, float32 or float64; 1 to 4 channels.
+    moebius : Moebius
+        The forward map, input sphere to output sphere: the output shows ``image`` moved by it.
+    width : int, optional
+        Output width (even); the height is half of it. Default: the input's width.
+    order : {"nearest", "bilinear", "bicubic"}
+
+    Returns
+    -------
+    WarpResult
+    """
+    width = check_warp_arguments(image, width, order)
+    if moebius.is_identity() and width == image.shape[1]:
+        return WarpResult(image.copy(), moebius, image.shape[1])
+    return WarpResult(warp_by_inverse(image, grid_inverse(moebius.inverse, "single"), width, order), moebius, image.shape[1])
+
+
+def check_warp_arguments(image: NDArray, width: int | None, order: str) -> int:
+    """Validate a warp's image, output width and order; returns the output width."""
+    check_panorama(image)
+    width = whole_number(image.shape[1] if width is None else width, "width", 2, even=True)
+    if order not in ORDERS:
+        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
+    return int(width)
+
+
+def warp_by_inverse(image: NDArray, inverse: GridInverse, width: int, order: Order = "bilinear") -> NDArray:
+    """Resample ``image`` at the directions an inverse map gives for a ``width`` wide output grid."""
+    coordinates = remap_coordinates(inverse, width, image.shape[1], PAD)
+    return remap(pad_panorama(image), coordinates, order)
