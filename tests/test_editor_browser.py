@@ -250,7 +250,7 @@ def test_draw_rectify_turn_undo(jupyter_server, browser):
 PANE_NOTEBOOK = [
     "import json\nimport omniwidget as ow\nfrom omniwidget.app.cli import DEMO_HANDLES\n\n"
     "ed = ow.Editor(ow.sample_path(), handles=DEMO_HANDLES, height=360)\ned",
-    "from omniwidget import pane\n\nweights = pane.WeightsPane(ed, window_size=(420, 420))\nweights",
+    "from omniwidget.viz import pane\n\nweights = pane.WeightsPane(ed, window_size=(420, 420))\nweights",
 ]
 
 

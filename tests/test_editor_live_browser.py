@@ -2,7 +2,7 @@
 
 While a control point is dragged on the result, the browser redraws the result every frame
 from the kernel's basis (:mod:`omniwidget.raster.live`) and the handle's maps rebuilt in
-JavaScript (``moebius.js``, checked against Python by ``tests/test_moebius_js.py``); on
+JavaScript (``moebius.js``, checked against Python by ``tests/test_js.py``); on
 release the kernel's exact result replaces it.
 
 The tests assert that every mouse move of a scripted drag (60 moves 16 ms apart) changes

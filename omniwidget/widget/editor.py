@@ -53,21 +53,35 @@ class _Document(traitlets.TraitType):
 
 
 _IMPORT = re.compile(r'^import \{([^}]*)\} from "\./(\w+)\.js";$', re.M)
+_EXPORT = re.compile(r"^export (?:const|let|class|function\*?|async function) (\w+)", re.M)
 
 
 def _bundle() -> str:
     """``static/editor.js`` with the modules it imports inlined: anywidget loads one module.
 
-    Each imported module (``moebius.js``, which ``node --test`` also imports on its own) runs
-    in a function scope of its own, so its private names do not clash with the editor's.
+    Each module (``sphere.js``, ``moebius.js``, ``view.js``, ..., which ``node --test`` also
+    imports on their own) runs once, before the first module that imports it, in a function
+    scope of its own, so its private names do not clash with another module's; an import
+    takes the names it asks for from the object of the module's exports. Modules must not
+    import each other in a cycle.
     """
+    modules: list[str] = []  # each module's code, in the order they run
+    names: dict[str, str] = {}  # a module's file name: the name of its exports in the bundle
 
     def inline(match: re.Match) -> str:
-        names = match.group(1).strip()
-        code = (_STATIC / f"{match.group(2)}.js").read_text(encoding="utf-8").replace("\nexport ", "\n")
-        return f"const {{ {names} }} = (() => {{\n{code}\nreturn {{ {names} }};\n}})();"
+        return f"const {{ {match.group(1).strip()} }} = {module(match.group(2))};"
 
-    return _IMPORT.sub(inline, (_STATIC / "editor.js").read_text(encoding="utf-8"))
+    def module(name: str) -> str:
+        if name not in names:
+            names[name] = f"_module_{name}"
+            code = _IMPORT.sub(inline, (_STATIC / f"{name}.js").read_text(encoding="utf-8"))
+            exports = ", ".join(_EXPORT.findall(code))
+            code = code.replace("\nexport ", "\n")
+            modules.append(f"const {names[name]} = (() => {{\n{code}\nreturn {{ {exports} }};\n}})();")
+        return names[name]
+
+    editor = _IMPORT.sub(inline, (_STATIC / "editor.js").read_text(encoding="utf-8"))
+    return "\n".join(modules) + "\n" + editor
 
 
 class Editor(anywidget.AnyWidget):

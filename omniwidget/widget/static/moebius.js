@@ -1,14 +1,21 @@
 // Möbius maps of the sphere for the editor's live drag: the JavaScript twin of
-// omniwidget/core/moebius.py and of the handles' maps in omniwidget/core/handles.py.
+// omniwidget/sphere/moebius.py and of the handles' maps in omniwidget/document/handles.py.
 //
-// Same conventions as omniwidget/core/coords.py: [lon, lat] in degrees, unit vector
-// (cos lat cos lon, cos lat sin lon, sin lat), stereographic homogeneous coordinates
+// Same conventions as omniwidget/sphere/coords.py (sphere.js): [lon, lat] in degrees, unit
+// vector (cos lat cos lon, cos lat sin lon, sin lat), stereographic homogeneous coordinates
 // [u : v] chosen as coords.xyz_to_homogeneous chooses them. A map is its 2 x 2 complex
 // matrix {a, b, c, d} (each [re, im]) normalised to determinant 1. tests/js/moebius.test.mjs
 // checks every function here against the Python it mirrors.
 
-const DEG = Math.PI / 180;
-export const ARROW_LENGTH = 0.3; // handles.ARROW_LENGTH (radians)
+import { ARROW_LENGTH, controlPoints } from "./handles.js";
+import { cross, DEG, dot, lonlatToXYZ, norm, xyzToLonLat } from "./sphere.js";
+
+/** @typedef {import("./sphere.js").LonLat} LonLat */
+/** @typedef {import("./sphere.js").Vec3} Vec3 */
+/** @typedef {import("./handles.js").Handle} Handle */
+/** @typedef {number[]} Complex [re, im] */
+/** @typedef {{a: Complex, b: Complex, c: Complex, d: Complex}} Moebius a Möbius map, determinant 1 */
+
 const SCALE_RANGE = [1e-3, 1e3]; // handles.SCALE_RANGE
 
 // --- complex numbers as [re, im] ---------------------------------------------------------
@@ -28,19 +35,6 @@ function csqrt([re, im]) {
 }
 
 // --- the sphere ----------------------------------------------------------------------------
-export function lonlatToXYZ([lon, lat]) {
-  const c = Math.cos(lat * DEG);
-  return [c * Math.cos(lon * DEG), c * Math.sin(lon * DEG), Math.sin(lat * DEG)];
-}
-
-export function xyzToLonLat([x, y, z]) {
-  const lon = Math.atan2(y, x) / DEG;
-  return [lon >= 180 ? lon - 360 : lon, Math.atan2(z, Math.hypot(x, y)) / DEG];
-}
-
-const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
-const norm = (a) => Math.hypot(a[0], a[1], a[2]);
 const matVec = (m, v) => m.map((row) => dot(row, v));
 const transpose = (m) => [0, 1, 2].map((j) => m.map((row) => row[j]));
 
@@ -74,9 +68,15 @@ function normalised(m) {
   return { a: cdiv(m.a, r), b: cdiv(m.b, r), c: cdiv(m.c, r), d: cdiv(m.d, r) };
 }
 
+/** @returns {Moebius} the identity map */
 export const identity = () => ({ a: [1, 0], b: [0, 0], c: [0, 0], d: [1, 0] });
 
-// (p @ q)(x) = p(q(x)), as Moebius.__matmul__.
+/**
+ * The composition (p @ q)(x) = p(q(x)), as Moebius.__matmul__.
+ * @param {Moebius} p
+ * @param {Moebius} q
+ * @returns {Moebius}
+ */
 export function compose(p, q) {
   return normalised({
     a: [cmul(p.a, q.a), cmul(p.b, q.c)].reduce((s, t) => [s[0] + t[0], s[1] + t[1]]),
@@ -86,9 +86,15 @@ export function compose(p, q) {
   });
 }
 
+/** @param {Moebius} m @returns {Moebius} the inverse map */
 export const inverse = (m) => ({ a: m.d, b: cneg(m.b), c: cneg(m.c), d: m.a });
 
-// The map applied to a unit vector (Moebius.apply_xyz).
+/**
+ * The map applied to a unit vector (Moebius.apply_xyz).
+ * @param {Moebius} m
+ * @param {Vec3} p unit vector
+ * @returns {Vec3} unit vector
+ */
 export function applyXYZ(m, p) {
   const [u, v] = homogeneous(p);
   const add = (s, t) => [s[0] + t[0], s[1] + t[1]];
@@ -103,19 +109,39 @@ function toZeroOneInfinity(points) {
   return { a: cmul(s1, v1), b: cneg(cmul(s1, u1)), c: cmul(s3, v3), d: cneg(cmul(s3, u3)) };
 }
 
-// The map sending three unit vectors to three others (Moebius.from_points_xyz).
+/**
+ * The map sending three unit vectors to three others (Moebius.from_points_xyz).
+ * @param {Vec3[]} src three distinct unit vectors
+ * @param {Vec3[]} dst three distinct unit vectors
+ * @returns {Moebius}
+ */
 export function fromPointsXYZ(src, dst) {
   const h = toZeroOneInfinity(dst);
   const adjoint = { a: h.d, b: cneg(h.b), c: cneg(h.c), d: h.a };
   return compose(adjoint, normalised(toZeroOneInfinity(src)));
 }
 
+/**
+ * The map sending three positions to three others (Moebius.from_points).
+ * @param {LonLat[]} src three distinct [lon, lat] in degrees
+ * @param {LonLat[]} dst three distinct [lon, lat] in degrees
+ * @returns {Moebius}
+ */
 export const fromPoints = (src, dst) => fromPointsXYZ(src.map(lonlatToXYZ), dst.map(lonlatToXYZ));
 
-// The map of a rotation matrix acting on column vectors (Moebius.from_rotation).
+/**
+ * The map of a rotation matrix acting on column vectors (Moebius.from_rotation).
+ * @param {number[][]} r 3 x 3 rotation matrix
+ * @returns {Moebius}
+ */
 export const fromRotation = (r) => fromPointsXYZ([[1, 0, 0], [0, 1, 0], [0, 0, 1]], transpose(r));
 
-// The rotation by `angle` radians about the unit vector `axis` (Moebius.rotation).
+/**
+ * The rotation by `angle` radians about the unit vector `axis` (Moebius.rotation).
+ * @param {Vec3} axis unit vector
+ * @param {number} angle radians
+ * @returns {Moebius}
+ */
 export function rotationAbout(axis, angle) {
   const [x, y, z] = axis;
   const k = [
@@ -135,16 +161,30 @@ function frameRotation(lonlat) {
   return [east, north.map((x) => -x), p.map((x) => -x)];
 }
 
-// A point handle's map (Moebius.point_map): position to target, magnified by `scale` and
-// turned by `rotation` degrees counter-clockwise at the target.
+/**
+ * A point handle's map (Moebius.point_map): position to target, magnified by `scale` and
+ * turned by `rotation` degrees counter-clockwise at the target.
+ * @param {LonLat} position [lon, lat] in degrees
+ * @param {LonLat} target [lon, lat] in degrees
+ * @param {number} [scale] magnification at the target, > 0
+ * @param {number} [rotation] degrees
+ * @returns {Moebius}
+ */
 export function pointMap(position, target, scale = 1, rotation = 0) {
   const root = csqrt([scale * Math.cos(rotation * DEG), -scale * Math.sin(rotation * DEG)]);
   const stretch = { a: root, b: [0, 0], c: [0, 0], d: cdiv([1, 0], root) };
   return compose(compose(fromRotation(transpose(frameRotation(target))), stretch), fromRotation(frameRotation(position)));
 }
 
-// The scale and rotation of a point handle whose output arrow tip is dragged to `tip`
-// (PointHandle.with_arrow_tip); null where the tip sits on the centre or its antipode.
+/**
+ * The scale and rotation of a point handle whose output arrow tip is dragged to `tip`
+ * (PointHandle.with_arrow_tip).
+ * @param {LonLat} final the handle's output centre, [lon, lat] in degrees
+ * @param {LonLat} tip where the arrow tip is dragged, [lon, lat] in degrees
+ * @param {"east" | "west"} which the arrow dragged
+ * @returns {{scale: number, rotation: number} | null} rotation in degrees; null where the tip sits on
+ *   the centre's antipode (on the centre: the smallest scale, SCALE_RANGE[0])
+ */
 export function arrowTip(final, tip, which) {
   const [u, v] = homogeneous(applyXYZ(fromRotation(frameRotation(final)), lonlatToXYZ(tip)));
   if (Math.hypot(...v) < 1e-12 * Math.hypot(...u)) return null;
@@ -204,8 +244,13 @@ function topEigenvector(n) {
   return v.map((row) => row[best]);
 }
 
-// The rotation best sending points onto others, least squares (coords.best_rotation; Horn's
-// quaternion form of Kabsch's solution), as a 3 x 3 matrix acting on column vectors.
+/**
+ * The rotation best sending points onto others, least squares (coords.best_rotation; Horn's
+ * quaternion form of Kabsch's solution).
+ * @param {LonLat[]} source [lon, lat] in degrees
+ * @param {LonLat[]} target as many, [lon, lat] in degrees
+ * @returns {number[][]} 3 x 3 matrix acting on column vectors
+ */
 export function bestRotation(source, target) {
   const s = [0, 1, 2].map(() => [0, 0, 0]);
   source.forEach((p, i) => {
@@ -233,6 +278,13 @@ export function bestRotation(source, target) {
 // whole handle). Returns the handle's maps, input to output: one for a point or a line, one
 // per vertex for a cage (with the still background, `carry`: the cage's best rotation then
 // the shortest turn onto each vertex's target, CageHandle.vertex_maps(carry=True)).
+/**
+ * @param {Handle} h the handle as in the document
+ * @param {LonLat[]} points its output control points, [lon, lat] in degrees
+ * @param {number} part the control point dragged, -1 the whole handle
+ * @param {boolean} carry the still background (a cage's maps carry its best rotation)
+ * @returns {Moebius[]} input to output
+ */
 export function dragMaps(h, points, part, carry) {
   if (h.kind === "point") {
     const final = points[0];
@@ -243,11 +295,7 @@ export function dragMaps(h, points, part, carry) {
     }
     return [pointMap(h.position, final, scale, rotation)];
   }
-  if (h.kind === "line") {
-    const [p, q] = [lonlatToXYZ(h.start), lonlatToXYZ(h.end)];
-    const middle = xyzToLonLat([p[0] + q[0], p[1] + q[1], p[2] + q[2]]);
-    return [fromPoints([h.start, middle, h.end], points)];
-  }
+  if (h.kind === "line") return [fromPoints(controlPoints(h), points)];
   if (!carry) return h.vertices.map((v, i) => pointMap(v, points[i]));
   const r = bestRotation(h.vertices, points);
   const whole = fromRotation(r);

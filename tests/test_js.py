@@ -1,14 +1,18 @@
-"""The browser's Möbius maps (omniwidget/widget/static/moebius.js) equal the Python ones they mirror.
+"""The editor's JavaScript (omniwidget/widget/static/*.js): ``node --test tests/js/`` and the bundle anywidget loads.
 
-The live drag rebuilds the dragged handle's maps in the browser every frame; they must be
-the maps the kernel builds on release. Python writes its own results for random handles to a
-JSON file and ``node --test tests/js/moebius.test.mjs`` compares (Node from Debian, no package).
+The pure modules of the front end (the sphere, the handles' shapes, the view, hit testing,
+the edits of the handles document, the handles' Möbius maps) each have a file of Node tests
+in ``tests/js``, run here by Node's own test runner (Node from Debian, no package). The live
+drag rebuilds the dragged handle's maps in the browser every frame; they must be the maps
+the kernel builds on release, so Python writes its own results for random handles to a JSON
+file that ``tests/js/moebius.test.mjs`` compares with (without it those tests are skipped).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -16,12 +20,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omniwidget.core import coords
-from omniwidget.core.handles import CageHandle, LineHandle, PointHandle
-from omniwidget.core.moebius import Moebius
+from omniwidget.document.handles import CageHandle, LineHandle, PointHandle
+from omniwidget.sphere import coords
+from omniwidget.sphere.moebius import Moebius
 from tests.conftest import offset, random_lonlat
 
 REPO = Path(__file__).resolve().parents[1]
+JS_TESTS = REPO / "tests" / "js"
+
+
+def _node() -> str:
+    node = shutil.which("node")
+    if node is None:
+        if os.environ.get("OMNIWIDGET_BROWSER_TESTS") == "1":
+            pytest.fail("node is needed for the JavaScript tests (apt-get install nodejs)")
+        pytest.skip("node is not installed")
+    return node
 
 
 def _images(m: Moebius, probes: np.ndarray) -> list:
@@ -83,20 +97,34 @@ def _cases(rng: np.random.Generator) -> dict:
     return out
 
 
-def test_the_browsers_maps_equal_the_kernels(tmp_path, rng):
-    node = shutil.which("node")
-    if node is None:
-        if os.environ.get("OMNIWIDGET_BROWSER_TESTS") == "1":
-            pytest.fail("node is needed for the JavaScript tests (apt-get install nodejs)")
-        pytest.skip("node is not installed")
+def test_the_javascript_tests_pass(tmp_path, rng):
+    """Every test of every file in tests/js runs (none skipped: the Python cases are there) and passes."""
+    node = _node()
     cases = tmp_path / "cases.json"
     cases.write_text(json.dumps(_cases(rng)))
+    files = sorted(JS_TESTS.glob("*.test.mjs"))  # node --test tests/js/, the files named: Node 22 reads arguments as globs, not folders
     run = subprocess.run(
-        [node, "--test", str(REPO / "tests" / "js" / "moebius.test.mjs")],
+        [node, "--test", *map(str, files)],
         env={**os.environ, "OMNIWIDGET_JS_CASES": str(cases)},
         capture_output=True,
         text=True,
         timeout=120,
     )
     assert run.returncode == 0, run.stdout + run.stderr
-    assert "# pass 6" in run.stdout and "# fail 0" in run.stdout, run.stdout
+    written = sum(len(re.findall(r"^test\(", f.read_text(encoding="utf-8"), re.M)) for f in files)
+    summary = dict(re.findall(r"^# (tests|pass|fail|cancelled|skipped|todo) (\d+)$", run.stdout, re.M))
+    assert summary == {"tests": str(written), "pass": str(written), "fail": "0", "cancelled": "0", "skipped": "0", "todo": "0"}, run.stdout
+
+
+def test_the_bundle_is_one_module_node_can_load(tmp_path):
+    """editor.py's bundle (editor.js with the modules it imports, and theirs, inlined) is one ES module with ``render``."""
+    from omniwidget.widget.editor import _bundle
+
+    node = _node()
+    bundle = _bundle()
+    assert not re.search(r"^\s*import\s", bundle, re.M), "an import left in the bundle"
+    path = tmp_path / "editor.bundle.mjs"
+    path.write_text(bundle, encoding="utf-8")
+    script = f"import({json.dumps(path.as_uri())}).then((m) => console.log(typeof m.default.render))"
+    run = subprocess.run([node, "--input-type=module", "-e", script], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0 and run.stdout.strip() == "function", run.stdout + run.stderr
