@@ -97,7 +97,7 @@ def _signature(args: tuple) -> tuple[tuple | None, bool]:
     is the one the stored copy's wrapper hands the kernel, so building it compiles no second
     specialisation, and a kernel runs natively only on what numba would have run it on.
     """
-    key = []
+    key: list[tuple[str, int] | str] = []
     plain = True
     for a in args:
         if isinstance(a, np.ndarray):
@@ -236,11 +236,11 @@ def _llvm() -> Any:
     """The binding layer of llvmlite, with the native target ready (what numba initialises)."""
     ll = _state.get("llvm")
     if ll is None:
-        import llvmlite.binding as ll
+        import llvmlite.binding as binding
 
-        ll.initialize_native_target()
-        ll.initialize_native_asmprinter()
-        _state["llvm"] = ll
+        binding.initialize_native_target()
+        binding.initialize_native_asmprinter()
+        ll = _state["llvm"] = binding
     return ll
 
 
@@ -339,7 +339,8 @@ def _build(name: str, dispatcher: Any, key: tuple) -> tuple[dict, bytes, Any]:
             argtypes.append(from_dtype(np.dtype(code)))
     namespace = {"kernel": dispatcher, "carray": carray}
     exec(f"def {name}_native({', '.join(params)}):\n    kernel({', '.join(call)})\n", namespace)  # noqa: S102
-    compiled = cfunc(types.void(*argtypes), nopython=True)(namespace[f"{name}_native"])
+    # a C callback is always compiled in nopython mode; Any: numba's private _library below is in no stub
+    compiled: Any = cfunc(types.void(*argtypes))(namespace[f"{name}_native"])
     ll = _llvm()
     library = compiled._library
     module = ll.parse_bitcode(library._final_module.as_bitcode())
@@ -393,7 +394,7 @@ class _Kernel:
 
     def __call__(self, *args: Any) -> None:
         key, plain = _signature(args)
-        if plain and enabled() and _MODULE not in sys.modules:
+        if key is not None and plain and enabled() and _MODULE not in sys.modules:
             fn = self._native.get(key, _MISSING)
             if fn is _MISSING:
                 fn = self._open(key)
@@ -407,7 +408,7 @@ class _Kernel:
 
         dispatcher = getattr(_numba_kernels, self.__name__)
         dispatcher(*args)
-        if plain and enabled() and key not in self._checked:
+        if key is not None and plain and enabled() and key not in self._checked:
             self._store(dispatcher, key)
 
     def _open(self, key: tuple) -> Any:

@@ -48,6 +48,8 @@ class Latest:
                 if self._stopped:
                     return
                 job, self._job = self._job, None
+                if job is None:  # wait_for saw a job or the stop; this narrows the type
+                    continue
                 self._running = True
             try:
                 job()

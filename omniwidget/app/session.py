@@ -24,7 +24,7 @@ import time
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -123,7 +123,8 @@ def _output_points(doc: Handles, constraints: Constraints) -> list[list[list[flo
             points = h.control_points()
             if i in pieces:
                 for k, p in enumerate(coords.lonlat_to_xyz(points)):
-                    nearest = max(pieces[i], key=lambda piece, p=p: float((piece[1] @ p).max()))
+                    reach = [float((piece[1] @ p).max()) for piece in pieces[i]]
+                    nearest = pieces[i][reach.index(max(reach))]  # the first piece that comes nearest
                     points[k] = nearest[0](points[k])
         else:
             points = np.asarray(h.finals, float)
@@ -151,7 +152,7 @@ def _autosave_name(image_path: Path | None, image: NDArray) -> str:
         return f"{image_path.stem}-{_digest(str(image_path.resolve()).encode())}{AUTOSAVE_SUFFIX}"
     pixels = np.ascontiguousarray(image)
     header = f"{pixels.shape}{pixels.dtype.str}".encode()
-    return f"panorama-{_digest(header + _digest(memoryview(pixels).cast('B')).encode())}{AUTOSAVE_SUFFIX}"
+    return f"panorama-{_digest(header + _digest(pixels.data.cast('B')).encode())}{AUTOSAVE_SUFFIX}"
 
 
 def _autosave_location(autosave: Any, image_path: Path | None, image: NDArray) -> Path | None:
@@ -202,6 +203,7 @@ def _read_autosave(path: Path) -> tuple[Handles | None, str]:
 # --- save image --------------------------------------------------------------------------------
 def _result_location(image_path: Path | None, result: NDArray) -> Path:
     """Where Save image writes ``result``: see :meth:`EditingSession.save_image`."""
+    suffixes: tuple[str, ...]
     if image_path is None:
         base, suffixes = Path.cwd() / f"panorama{RESULT_SUFFIX}", _RESULT_FORMATS
     else:
@@ -328,7 +330,7 @@ class EditingSession:
             self._undo.append(doc.to_dict())  # undo: start without them
             doc = saved
             self._notice = f"restored {_count(saved)} from {self.autosave_path} (undo to start without them)"
-        elif problem:
+        elif problem and self.autosave_path is not None:  # a problem comes only with an autosave path
             self._autosave_bad = True
             kept = f"the file is kept, as {_aside(self.autosave_path).name} from the first edit"
             self._notice = (
@@ -688,7 +690,7 @@ class EditingSession:
         h = self._handle(index)
         self._edit(lambda items: items.__setitem__(index, _reset(h)))
 
-    def move_arrow(self, index: int, tip: Any, which: str = "east") -> None:
+    def move_arrow(self, index: int, tip: Any, which: Literal["east", "west"] = "east") -> None:
         """Drag point handle ``index``'s output arrow tip to ``tip`` ``[lon, lat]``: it turns and zooms."""
         h = self._handle(index)
         if not isinstance(h, PointHandle):
@@ -761,6 +763,7 @@ class EditingSession:
         if not isinstance(content, dict):
             return
         op = content.get("op")
+        index: Any = content.get("index")  # checked by the methods, as every value of the front end
         try:
             if op == "undo":
                 self.undo()
@@ -769,11 +772,11 @@ class EditingSession:
             elif op == "rectify_all":
                 self.rectify_all()
             elif op == "rectify_line":
-                self.rectify_line(content.get("index"))
+                self.rectify_line(index)
             elif op == "reset":
-                self.reset(content.get("index"))
+                self.reset(index)
             elif op == "arrow":
-                self.move_arrow(content.get("index"), content.get("tip"), content.get("which", "east"))
+                self.move_arrow(index, content.get("tip"), content.get("which", "east"))
             elif op == "drag":
                 self._solve_drag(content.get("handles"))
             elif op == "refresh":

@@ -413,6 +413,11 @@ def _lonlat_list(value: Any, where: str, count: int | None = None, minimum: int 
     return tuple(_lonlat(item, f"{where}[{i}]") for i, item in enumerate(value))
 
 
+def _lonlat_triple(value: Any, where: str) -> tuple[LonLat, LonLat, LonLat]:
+    first, second, third = _lonlat_list(value, where, count=3)
+    return (first, second, third)
+
+
 def _distinct(points: Sequence[LonLat], where: str, closed: bool = False) -> None:
     pts = np.asarray(points, dtype=np.float64)
     n = len(pts)
@@ -463,7 +468,7 @@ def _parse_handle(data: Any, index: int) -> Handle:
             start=_lonlat(data["start"], f"{where}.start"),
             end=_lonlat(data["end"], f"{where}.end"),
             rectify=rectify,
-            targets=None if targets is None else _lonlat_list(targets, f"{where}.targets", count=3),  # type: ignore[arg-type]
+            targets=None if targets is None else _lonlat_triple(targets, f"{where}.targets"),
             id=hid,
         )
     targets = data.get("targets")

@@ -37,7 +37,7 @@ import html
 import math
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -129,6 +129,8 @@ class BaselineResult(Result):
         points = np.asarray(lonlat, dtype=np.float64)
         if points.shape[-1:] != (2,):
             raise ValueError(f"expected [lon, lat] pairs in the last axis, got shape {points.shape}")
+        if self.source_of is None:
+            raise ValueError("this result has no inverse map at points (its source_of is None)")
         return self.source_of(points.reshape(-1, 2)).reshape(points.shape)
 
     def pixel_weights(self, rows: slice | None = None) -> NDArray[np.float64]:
@@ -147,6 +149,8 @@ class BaselineResult(Result):
             for :func:`gaussian_2017` (these do not sum to 1).
         """
         rows = slice(None) if rows is None else rows
+        if self.per_pixel is None:
+            raise ValueError("this result has no per-pixel weights (its per_pixel is None)")
         return np.asarray(self.per_pixel(rows), dtype=np.float64)
 
 
@@ -426,7 +430,7 @@ def _gaussian_weights(constraints: Constraints, sigma: NDArray[np.float64]) -> C
     return fn
 
 
-def _displaced(lonlat: NDArray[np.float64], sources: list[NDArray[np.float64]], weights: NDArray[np.float64]) -> NDArray[np.float64]:
+def _displaced(lonlat: NDArray[np.float64], sources: Sequence[NDArray[np.float64] | None], weights: NDArray[np.float64]) -> NDArray[np.float64]:
     """``p + sum_j w_j (M_j⁻¹(p) - p)`` in longitude and latitude (degrees), (..., 2).
 
     Each displacement's longitude is wrapped into ``[-180, 180)``; the sum is wrapped
@@ -521,7 +525,7 @@ def gaussian_2017(
 
     def inverse(lon: NDArray[np.float64], lat: NDArray[np.float64], rows: slice) -> tuple[NDArray, NDArray]:
         w = per_pixel(rows)
-        sources = []
+        sources: list[NDArray[np.float64] | None] = []
         for j, m in enumerate(inverses):
             if not w[..., j].max() > NEGLIGIBLE:
                 sources.append(None)
@@ -630,11 +634,13 @@ def _camera(center: tuple[float, float]) -> tuple[NDArray[np.float64], NDArray[n
 
 
 def _center(value: object) -> tuple[float, float]:
+    if not isinstance(value, Iterable) or isinstance(value, str | bytes):
+        raise ValueError(f"center must be [lon, lat] in degrees, got {value!r}")
     try:
-        lon, lat = (float(v) for v in value)  # type: ignore[union-attr]
+        lon, lat = (float(v) for v in value)
     except (TypeError, ValueError):
         raise ValueError(f"center must be [lon, lat] in degrees, got {value!r}") from None
-    if isinstance(value, str | bytes) or not (math.isfinite(lon) and math.isfinite(lat)):
+    if not (math.isfinite(lon) and math.isfinite(lat)):
         raise ValueError(f"center must be [lon, lat] in degrees, got {value!r}")
     if not -180 <= lon <= 180:
         raise ValueError(f"center[0] (longitude): {lon:g} is out of range [-180, 180]")

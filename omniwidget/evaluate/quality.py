@@ -1105,10 +1105,10 @@ def kink(
     length = _arc_position(b, a, v)
     along = []
     for p in coords.lonlat_to_xyz(marked):
-        s = _arc_position(p, a, v)
-        if abs(float(p @ normal)) > math.sin(math.radians(0.01)) or not -0.01 <= s <= length + 0.01:
+        position = _arc_position(p, a, v)
+        if abs(float(p @ normal)) > math.sin(math.radians(0.01)) or not -0.01 <= position <= length + 0.01:
             raise ValueError(f"the marked end {coords.xyz_to_lonlat(p).round(4).tolist()} is not on the line (within 0.01 degrees)")
-        along.append(s)
+        along.append(position)
     first, last = max(0.0, min(along) - beyond), min(length, max(along) + beyond)
     s = first + KINK_STEP * np.arange(int(math.floor((last - first) / KINK_STEP + 1e-9)) + 1)
     phi = np.radians(s)[:, None]

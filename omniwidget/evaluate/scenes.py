@@ -693,7 +693,8 @@ def _family_lines(
 
     order = [(-1, line) for line in kept] + [(int(i), cuts[i]) for i in rng.permutation(len(cuts))]
     picked = _pick_lines(order, count + len(kept), 8.0, accept, t, line_of)
-    return [(pieces[i], cut[0]) for i, cut in picked if i >= 0]  # the kept lines were kept clear of each other before
+    # the kept lines were kept clear of each other before; a picked cut's piece is never None (line_of passed it)
+    return [(piece, cut[0]) for i, cut in picked if i >= 0 and (piece := pieces[i]) is not None]
 
 
 def _min_distance(a: FloatArray, b: FloatArray) -> float:
@@ -964,10 +965,12 @@ def _grid_positions(half: float, grid: float | None) -> FloatArray:
     if grid is None:
         return np.empty(0)
     count = math.floor(2 * half / grid * (1 - 1e-12))
-    return -half + grid * np.arange(1, count + 1)
+    return -half + grid * np.arange(1, count + 1, dtype=np.float64)
 
 
-def _room_segments(half: FloatArray, grid_lines: list[FloatArray]) -> Iterator[tuple[FloatArray, FloatArray, str, tuple[str, ...]]]:
+def _room_segments(
+    half: FloatArray, grid_lines: list[FloatArray]
+) -> Iterator[tuple[FloatArray, FloatArray, Literal["edge", "grid"], tuple[str, ...]]]:
     """Yield ``(start, end, kind, faces)`` of every line in the room frame.
 
     The 12 edges come first, then for each face and each of its two in-plane axes the
@@ -997,15 +1000,15 @@ def _room_segments(half: FloatArray, grid_lines: list[FloatArray]) -> Iterator[t
                 yield start, end, "grid", (name,)
 
 
-def _scene_line(p: FloatArray, q: FloatArray, kind: str, faces: tuple[str, ...]) -> SceneLine:
+def _scene_line(p: FloatArray, q: FloatArray, kind: Literal["edge", "grid"], faces: tuple[str, ...]) -> SceneLine:
     """Make the :class:`SceneLine` between camera-frame points ``p`` and ``q``."""
     (lon0, lat0), (lon1, lat1) = coords.xyz_to_lonlat(np.array([p, q]))
     return SceneLine(
         start=(float(lon0), float(lat0)),
         end=(float(lon1), float(lat1)),
         kind=kind,
-        start_3d=tuple(float(c) for c in p),
-        end_3d=tuple(float(c) for c in q),
+        start_3d=(float(p[0]), float(p[1]), float(p[2])),
+        end_3d=(float(q[0]), float(q[1]), float(q[2])),
         faces=faces,
     )
 

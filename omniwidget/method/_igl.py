@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import whole_number
-from .bbw import as_constraints, as_mesh
+from .laplacian import as_constraints, as_mesh
 
 __all__ = ["igl_bbw", "igl_version", "load_igl"]
 

@@ -380,8 +380,8 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     points = np.array([r[0] for r in rows], dtype=np.float64).reshape(-1, 3)
     values = np.zeros((len(rows), k))
     for r, (_, weights) in enumerate(rows):
-        for c, w in weights.items():
-            values[r, c] = w
+        for c, weight in weights.items():
+            values[r, c] = weight
     return Constraints(
         tuple(controls), points, values, tuple(line_samples), solution, tuple(chains), tuple(disks), tuple(cages), near_pole
     )
@@ -407,7 +407,8 @@ def _line_parts(
     if h.targets is not None:
         line = h
     elif targets is not None:
-        line = LineHandle(tuple(start), tuple(end), rectify=False, targets=tuple(map(tuple, targets)))
+        (s_lon, s_lat), (m_lon, m_lat), (e_lon, e_lat) = targets  # the piece's three control points
+        line = LineHandle(tuple(start), tuple(end), rectify=False, targets=((s_lon, s_lat), (m_lon, m_lat), (e_lon, e_lat)))
     else:
         line = LineHandle(tuple(start), tuple(end), rectify=h.rectify)
     m = line.moebius()

@@ -139,12 +139,17 @@ class Deformation:
 class Solved(Protocol):
     """An earlier solve whose weights a new one may reuse: a :class:`Deformation` or a warp's ``Result``."""
 
-    vertices: NDArray[np.float64] | None
-    faces: NDArray[np.int64] | None
-    constrained: NDArray[np.int64] | None
-    prescribed: NDArray[np.float64] | None
-    raw_weights: NDArray[np.float64] | None
-
+    # read-only (properties): the solves are frozen dataclasses
+    @property
+    def vertices(self) -> NDArray[np.float64] | None: ...
+    @property
+    def faces(self) -> NDArray[np.int64] | None: ...
+    @property
+    def constrained(self) -> NDArray[np.int64] | None: ...
+    @property
+    def prescribed(self) -> NDArray[np.float64] | None: ...
+    @property
+    def raw_weights(self) -> NDArray[np.float64] | None: ...
     @property
     def controls(self) -> tuple[Control, ...]: ...
 
@@ -309,6 +314,8 @@ def _pole_lines(handles: Handles, constraints: Constraints) -> list[str]:
     found = []
     for i, top in constraints.near_pole:
         line = handles.handles[i]
+        if not isinstance(line, LineHandle):  # build_constraints lists line handles only
+            raise TypeError(f"constraints.near_pole names handles[{i}], a {line.kind} handle, not a line")
         moved = float(coords.angular_distance(coords.geodesic_midpoint(line.start, line.end), line.target_points()[1]))
         where = f"handles[{i}] (line) passes {90 - abs(top):.1f}° from the {'north' if top > 0 else 'south'} pole"
         if background:
@@ -340,6 +347,8 @@ def _previous_weights(previous: Solved | None, vertices: NDArray, faces: NDArray
     """The previous warp's raw weights when it solved exactly this weights problem, else None."""
     if previous is None or previous.raw_weights is None:
         return None
+    if previous.vertices is None or previous.faces is None or previous.constrained is None or previous.prescribed is None:
+        return None  # no mesh problem to compare with
     same = (
         np.array_equal(previous.vertices, vertices)
         and np.array_equal(previous.faces, faces)
@@ -352,6 +361,8 @@ def _previous_weights(previous: Solved | None, vertices: NDArray, faces: NDArray
 def _warm_start(previous: Solved | None, constraints: Constraints, vertices: NDArray) -> NDArray[np.float64] | None:
     """The previous warp's raw weights interpolated at the new mesh's vertices, when its controls are the same ones."""
     if previous is None or previous.raw_weights is None or len(previous.controls) != len(constraints.controls):
+        return None
+    if previous.vertices is None or previous.faces is None:  # weights without their mesh: nothing to interpolate
         return None
     if any(p.handle != c.handle or p.label != c.label for p, c in zip(previous.controls, constraints.controls, strict=True)):
         return None

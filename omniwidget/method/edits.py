@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..document.handles import Handles, LineHandle
+from ..document.handles import Handles, LineHandle, LonLat
 from ..sphere.moebius import Moebius
 from .constraints import build_constraints
 
@@ -44,8 +44,9 @@ def rectify_line(handles: Handles, index: int, *, samples: int = 50) -> Handles:
     if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not -len(items) <= index < len(items):
         raise IndexError(f"handles[{index}]: there are {len(items)} handles")
     index = int(index) % len(items)
-    if not isinstance(items[index], LineHandle):
-        raise ValueError(f"handles[{index}] is a {items[index].kind} handle, not a line")
+    chosen = items[index]
+    if not isinstance(chosen, LineHandle):
+        raise ValueError(f"handles[{index}] is a {chosen.kind} handle, not a line")
     current = build_constraints(handles, samples=samples)
     pieces: dict[int, list[Moebius]] = {}
     for control in current.controls:
@@ -54,7 +55,7 @@ def rectify_line(handles: Handles, index: int, *, samples: int = 50) -> Handles:
         if i != index and isinstance(h, LineHandle) and h.targets is None and h.rectify and len(pieces[i]) == 1:
             items[i] = replace(h, rectify=False, targets=_as_targets(pieces[i][0](h.control_points())))
     frozen = [replace(h, rectify=False) if isinstance(h, LineHandle) and i != index else h for i, h in enumerate(items)]
-    line = replace(items[index], rectify=True, targets=None)
+    line = replace(chosen, rectify=True, targets=None)
     frozen[index] = line
     alone = build_constraints(replace(handles, handles=tuple(frozen), options=replace(handles.options, rectify="all")), samples=samples)
     maps = [c.moebius for c in alone.controls if c.handle == index]
@@ -64,5 +65,6 @@ def rectify_line(handles: Handles, index: int, *, samples: int = 50) -> Handles:
     return replace(handles, handles=tuple(items))
 
 
-def _as_targets(points: NDArray[np.float64]) -> tuple[tuple[float, float], ...]:
-    return tuple((float(lon), float(lat)) for lon, lat in points)
+def _as_targets(points: NDArray[np.float64]) -> tuple[LonLat, LonLat, LonLat]:
+    start, middle, end = ((float(lon), float(lat)) for lon, lat in points)  # a line's three control points
+    return (start, middle, end)

@@ -418,26 +418,26 @@ def _runs(mesh: _Mesh, width: int, cos_lat: FloatArray, sin_lat: FloatArray) -> 
     lo2 = lo0 + np.mod(lo[2] - lo0, two_pi)
     hi1 = lo1 + 2.0 * half[1]
     hi2 = lo2 + 2.0 * half[2]
-    run_lo = [np.maximum(np.maximum(lo0, lo1), lo2)]
-    run_hi = [np.minimum(np.minimum(hi0, hi1), hi2)]
-    run_face, run_row = [pair_face], [pair_row]
+    lo_parts = [np.maximum(np.maximum(lo0, lo1), lo2)]
+    hi_parts = [np.minimum(np.minimum(hi0, hi1), hi2)]
+    face_parts, row_parts = [pair_face], [pair_row]
     wrap1, wrap2 = hi1 - two_pi, hi2 - two_pi
     wraps = np.flatnonzero((wrap1 >= lo0) | (wrap2 >= lo0))
     if len(wraps):
         lo0, hi0, lo1, hi1, lo2, hi2 = lo0[wraps], hi0[wraps], lo1[wraps], hi1[wraps], lo2[wraps], hi2[wraps]
         wrap1, wrap2 = wrap1[wraps], wrap2[wraps]
-        run_lo += [np.maximum(lo0, lo2), np.maximum(lo0, lo1), lo0]
-        run_hi += [
+        lo_parts += [np.maximum(lo0, lo2), np.maximum(lo0, lo1), lo0]
+        hi_parts += [
             np.minimum(np.minimum(hi0, wrap1), hi2),
             np.minimum(np.minimum(hi0, hi1), wrap2),
             np.minimum(np.minimum(hi0, wrap1), wrap2),
         ]
-        run_face += [pair_face[wraps]] * 3
-        run_row += [pair_row[wraps]] * 3
-        run_lo, run_hi = np.concatenate(run_lo), np.concatenate(run_hi)
-        run_face, run_row = np.concatenate(run_face), np.concatenate(run_row)
+        face_parts += [pair_face[wraps]] * 3
+        row_parts += [pair_row[wraps]] * 3
+        run_lo, run_hi = np.concatenate(lo_parts), np.concatenate(hi_parts)
+        run_face, run_row = np.concatenate(face_parts), np.concatenate(row_parts)
     else:
-        run_lo, run_hi, run_face, run_row = run_lo[0], run_hi[0], run_face[0], run_row[0]
+        run_lo, run_hi, run_face, run_row = lo_parts[0], hi_parts[0], face_parts[0], row_parts[0]
     keep = run_lo <= run_hi
     if not np.all(keep):
         run_lo, run_hi, run_face, run_row = run_lo[keep], run_hi[keep], run_face[keep], run_row[keep]

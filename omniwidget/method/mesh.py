@@ -329,7 +329,7 @@ def _thresholds(threshold: float | Sequence[float] | None, base_level: int, roun
     else:
         arr = np.asarray(threshold, dtype=np.float64)
         if arr.ndim == 0:
-            values = float(arr) / 2.0 ** np.arange(rounds)
+            values = float(arr) / 2.0 ** np.arange(rounds, dtype=np.float64)
         elif arr.shape == (rounds,):
             values = arr
         else:

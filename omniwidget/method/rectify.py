@@ -173,7 +173,7 @@ def _slots(bones: Sequence[Bone]) -> tuple[NDArray, NDArray, int]:
         if not b.free:
             for e, j in ((0, b.joints[0]), (-1, b.joints[1])):
                 if j is not None:
-                    fixed_joint[j] = b.outputs[e]
+                    fixed_joint[j] = _kept_outputs(b)[e]
     joint_var: dict[int, int] = {}
     n = 0
     for k, b in enumerate(bones):
@@ -194,6 +194,13 @@ def _slots(bones: Sequence[Bone]) -> tuple[NDArray, NDArray, int]:
         var[k, 1] = n
         n += 1
     return var, known, n
+
+
+def _kept_outputs(bone: Bone) -> NDArray[np.float64]:
+    """A kept bone's ``outputs``; ValueError for one without them."""
+    if bone.outputs is None:
+        raise ValueError(f"a kept bone needs its outputs, got none for the bone from {bone.start} to {bone.end}")
+    return bone.outputs
 
 
 def _along(points: NDArray[np.float64]) -> float:
@@ -345,7 +352,8 @@ def solve_bones(
         if b.free:
             d = np.zeros((samples, 2))
         else:
-            d = np.stack([coords.wrap_lon(b.outputs[:, 0] - src[:, 0]), b.outputs[:, 1] - src[:, 1]], axis=1)
+            kept = _kept_outputs(b)
+            d = np.stack([coords.wrap_lon(kept[:, 0] - src[:, 0]), kept[:, 1] - src[:, 1]], axis=1)
         inputs.append(src)
         disp.append(d)
         owner.append(np.full(samples, k))
@@ -401,10 +409,10 @@ def solve_bones(
         if not b.free:
             continue
         v, p = var[k], known[k]
-        t = 0.5 if keep == "endpoints" else _along(p)
+        tm = 0.5 if keep == "endpoints" else _along(p)
         rows.add(  # eq. (9): middle - ((1 - t) start + t end), t = 1/2 in the paper
-            [(v[1:2], np.ones(1)), (v[0:1], np.full(1, t - 1.0)), (v[2:3], np.full(1, -t))],
-            (p[1] - (1.0 - t) * p[0] - t * p[2])[None],
+            [(v[1:2], np.ones(1)), (v[0:1], np.full(1, tm - 1.0)), (v[2:3], np.full(1, -tm))],
+            (p[1] - (1.0 - tm) * p[0] - tm * p[2])[None],
             np.full(1, RECTIFY_WEIGHT * (1.0 if keep == "endpoints" else LEAST_MOTION_STIFFNESS)),
         )
         if keep == "sphere":
@@ -422,7 +430,7 @@ def solve_bones(
     elif n:
         x = cho_solve(cho_factor(q.toarray()), rhs)  # n is 3 per line: small and dense is fastest
     targets: list[NDArray[np.float64] | None] = []
-    moved_by = []
+    moved_by: list[float] = []
     for k, b in enumerate(bones):
         if not b.free:
             targets.append(None)

@@ -119,7 +119,7 @@ def _region(reach: NDArray[np.bool_]) -> tuple[slice, NDArray[np.int64]]:
     if not rows.size:
         return slice(0, 0), np.zeros(0, np.int64)
     used = reach.any(axis=0)
-    width = len(used)
+    width = reach.shape[1]
     longest, end, run = 0, -1, 0  # the longest run of unused columns, going round the seam
     for i, free in enumerate(np.concatenate([~used, ~used])):
         run = run + 1 if free else 0
@@ -158,16 +158,18 @@ def live_basis(result: Result, handle: int, region_weight: float | None = REGION
     width = result.image.shape[1]
     inverses = [c.moebius.inverse for c in controls]
     lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
-    if result.weights is None:  # one map does it all: every control weighs the same
+    vertices, faces = result.vertices, result.faces
+    fixed: NDArray[np.floating]
+    if result.weights is None or vertices is None or faces is None:  # one map does it all: every control weighs the same
         share = 1.0 / len(controls)
         fixed = (share * (len(controls) - len(moving))) * _unit_images(inverses[0], lon, lat)
         weights = np.full(fixed.shape[:2] + (len(moving),), share, np.float32)
     elif _kernels.available():
-        face, planes = locate_faces(result.vertices, result.faces, width)
-        fixed, weights = _kernels.split_sum(face, planes, result.faces, result.weights, inverses, moving)
+        face, planes = locate_faces(vertices, faces, width)
+        fixed, weights = _kernels.split_sum(face, planes, faces, result.weights, inverses, moving)
     else:
-        face, bary = locate_grid(result.vertices, result.faces, width)
-        w = interpolate(np.asarray(result.weights, np.float32), result.faces, face, bary)
+        face, bary = locate_grid(vertices, faces, width)
+        w = interpolate(np.asarray(result.weights, np.float32), faces, face, bary)
         fixed = np.zeros(face.shape + (3,), np.float64)
         for j, m in enumerate(inverses):
             if j not in moving and w[..., j].max() > 0:

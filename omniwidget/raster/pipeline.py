@@ -17,12 +17,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._checks import whole_number
 from .._timing import Laps
 from ..document.handles import Handles
 from ..method.background import BACKGROUND
 from ..method.constraints import SAMPLES, Control
 from ..method.deformation import Deformation, deform
 from ..method.locate import interpolate, locate_grid
+from ..sphere import coords
 from ..sphere.moebius import Moebius
 from . import _kernels
 from .blend import blended_inverse, mesh_pixel_weights
@@ -131,6 +133,33 @@ class Result(Deformation):
             raise ValueError(f"dtype must be numpy.float32 or numpy.float64, got {dtype!r}")
         return self._inverse_map.astype(dtype, copy=dtype is not np.float64)
 
+    def skimage_inverse_map(self, channels: int | None = None) -> NDArray[np.float64]:
+        """The inverse map as ``skimage.transform.warp(image, inverse_map)`` takes it: input pixel coordinates per output pixel.
+
+        ``skimage.transform.warp(image, result.skimage_inverse_map(3), order=1, mode="wrap",
+        preserve_range=True)`` gives this warp's image (an RGB ``image``) within one grey
+        level, away from the seam and the poles: scikit-image wraps rows as it wraps
+        columns, where this toolkit continues over the poles.
+
+        Parameters
+        ----------
+        channels : int, optional
+            The input's channels ``C`` for a colour image; None for a grey one.
+
+        Returns
+        -------
+        ndarray of float64, shape (2, H, W), or (3, H, W, C) with ``channels``
+            The ``(row, col)`` in the input (pixel centres at whole numbers) each output
+            pixel shows, and for a colour image the channel index too.
+        """
+        xy = coords.lonlat_to_px(self.inverse_map(np.float64), self.source_width)
+        if channels is None:
+            return np.stack([xy[..., 1], xy[..., 0]])
+        c = whole_number(channels, "channels", 1)
+        out = np.empty((3, *xy.shape[:2], c))
+        out[0], out[1], out[2] = xy[..., 1, None], xy[..., 0, None], np.arange(c)
+        return out
+
 
 def _exact_inverse(
     inverses: list[Moebius], vertices: NDArray[np.float64], faces: NDArray[np.int64], weights: NDArray[np.float64], width: int
@@ -151,7 +180,7 @@ def _exact_inverse(
 
 def blend_coordinates(
     deformation: Deformation, width: int, src_width: int, *, exact: bool = False, timings: dict[str, float] | None = None
-) -> tuple[NDArray[np.float32], FoldOver, NDArray[np.float64] | None]:
+) -> tuple[NDArray[np.float32], FoldOver, NDArray[np.floating] | None]:
     """The deformation's inverse map on a ``width`` wide output grid, as source pixel coordinates for resampling.
 
     The one place the per-pixel backend is chosen: the compiled kernels
@@ -196,9 +225,9 @@ def blend_coordinates(
             coordinates, face, planes = _kernels.walk_blend(d.vertices, d.faces, d.weights, inverses, width, src_width)
         laps("blend")
         folds = fold_of_coordinates(coordinates, src_width)
-        at_folds = None
+        at_folds: NDArray[np.floating] | None = None
         if folds.area >= FOLD_WARNING_AREA:
-            where = folds.mask if step == 1 else folds.mask.reshape(face.shape[0], step, face.shape[1], step).any(axis=(1, 3))
+            where = folds.mask if step == 1 else np.asarray(folds.mask.reshape(face.shape[0], step, face.shape[1], step).any(axis=(1, 3)))
             at_folds = _kernels.strongest_weights(where, face, planes, d.faces, d.weights)[None]
     else:
         face, bary = locate_grid(d.vertices, d.faces, width)

@@ -86,7 +86,7 @@ def grid_homogeneous(
     if np.any(sin_lat[:k] <= 0) or np.any(sin_lat[k:] > 0):
         raise ValueError("grid rows must run from north to south")
     one = real(1.0)
-    big_u = np.empty((len(lat), len(lon)), cplx)
+    big_u: NDArray[np.complexfloating] = np.empty((len(lat), len(lon)), cplx)
     big_v = np.empty_like(big_u)
     # northern rows: [u : v] = [1 + sin(lat) : cos(lat) conj(e)]
     big_u[:k] = cos_lat[:k] * (b * ce) + a * (one + sin_lat[:k])
@@ -226,7 +226,8 @@ def remap(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bili
     interpolation = {"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR, "bicubic": cv2.INTER_CUBIC}[order]
     if image.ndim == 3 and image.shape[2] == 2:  # OpenCV samples two channels on a coarser grid (1/32 pixel): one at a time
         return np.dstack([remap(np.ascontiguousarray(image[..., k]), coordinates, order) for k in range(2)])
-    out = cv2.remap(image, coordinates, None, interpolation, borderMode=cv2.BORDER_REPLICATE)
+    # the stub wants a map2, but None is OpenCV's documented empty map2 (one (x, y) map)
+    out = cv2.remap(image, coordinates, None, interpolation, borderMode=cv2.BORDER_REPLICATE)  # type: ignore[call-overload]
     if image.ndim == 3 and out.ndim == 2:  # OpenCV drops a single channel axis
         out = out[..., None]
     return out

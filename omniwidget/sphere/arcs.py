@@ -17,7 +17,7 @@ from . import coords
 __all__ = ["arc_crossing", "crossing_pairs", "inside_polygon"]
 
 
-def _cross(a: NDArray, b: NDArray) -> tuple[float, float, float]:
+def _cross(a: NDArray | Sequence[float], b: NDArray | Sequence[float]) -> tuple[float, float, float]:
     """``a × b`` of two 3-vectors, without ``np.cross``'s overhead (it is called for every pair of arcs)."""
     a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
     b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])

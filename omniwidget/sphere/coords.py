@@ -230,8 +230,8 @@ def grid_lonlat(width: int) -> tuple[FloatArray, FloatArray]:
     if width < 2 or width % 2:
         raise ValueError(f"an equirectangular width must be even and at least 2, got {width}")
     step = 360.0 / width
-    lon = -180.0 + (np.arange(width) + 0.5) * step
-    lat = 90.0 - (np.arange(width // 2) + 0.5) * step
+    lon = -180.0 + (np.arange(width, dtype=np.float64) + 0.5) * step
+    lat = 90.0 - (np.arange(width // 2, dtype=np.float64) + 0.5) * step
     return lon, lat
 
 
@@ -275,17 +275,17 @@ def homogeneous_to_xyz(u: ArrayLike, v: ArrayLike) -> FloatArray:
     ndarray of float64, shape (..., 3)
         Unit vectors.
     """
-    u = np.asarray(u, dtype=np.complex128)
-    v = np.asarray(v, dtype=np.complex128)
+    uc = np.asarray(u, dtype=np.complex128)
+    vc = np.asarray(v, dtype=np.complex128)
     # Scale each pair so that the larger entry has modulus 1: no overflow or underflow.
-    scale = np.maximum(np.abs(u), np.abs(v))
+    scale = np.maximum(np.abs(uc), np.abs(vc))
     if np.any(scale == 0):
         raise ValueError("[0 : 0] is not a point of the extended complex plane")
-    u = u / scale
-    v = v / scale
-    uv = u * np.conj(v)
-    uu = u.real**2 + u.imag**2
-    vv = v.real**2 + v.imag**2
+    uc = uc / scale
+    vc = vc / scale
+    uv = uc * np.conj(vc)
+    uu = uc.real**2 + uc.imag**2
+    vv = vc.real**2 + vc.imag**2
     norm = uu + vv
     return np.stack([2 * uv.real / norm, 2 * uv.imag / norm, (uu - vv) / norm], axis=-1)
 

@@ -94,7 +94,7 @@ class Moebius:
     @classmethod
     def identity(cls) -> Moebius:
         """The identity map."""
-        return cls(np.eye(2))
+        return cls(np.eye(2, dtype=np.complex128))
 
     @classmethod
     def from_points(cls, src: ArrayLike, dst: ArrayLike) -> Moebius:

@@ -108,6 +108,11 @@ def _pyvista() -> Any:
 
 def _check_result(result: object) -> Result:
     """``result`` itself, if it is a Result with a mesh and weights; else a clear error."""
+    return _result_mesh(result)[0]
+
+
+def _result_mesh(result: object) -> tuple[Result, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
+    """``result`` and its ``vertices``, ``faces`` and ``weights``, if it is a Result with a mesh and weights; else a clear error."""
     if not isinstance(result, Result):
         raise TypeError(f"expected an omniwidget Result (from omniwidget.warp), got {type(result).__name__}")
     if result.weights is None or result.vertices is None or result.faces is None:
@@ -116,7 +121,7 @@ def _check_result(result: object) -> Result:
             "Möbius map (no handles, one handle, or handles that do not move each other), which is applied "
             "exactly without blending; warp two or more handles with different maps to get a mesh"
         )
-    return result
+    return result, result.vertices, result.faces, result.weights
 
 
 def _check_handle(result: Result, handle: object) -> int:
@@ -172,8 +177,7 @@ def handle_weights(result: Result) -> NDArray[np.float64]:
     ValueError
         If the result has no weights (a single-map warp).
     """
-    result = _check_result(result)
-    weights = result.weights
+    result, _, _, weights = _result_mesh(result)
     out = np.zeros((weights.shape[0], len(result.handles)), dtype=np.float64)
     for c, control in enumerate(result.controls):
         if control.handle != BACKGROUND:
@@ -251,15 +255,15 @@ def weights_mesh(result: Result) -> pyvista.PolyData:
         If the result has no mesh (a single-map warp).
     """
     pv = _pyvista()
-    result = _check_result(result)
-    mesh = pv.PolyData(np.array(result.vertices, dtype=np.float64), _vtk_faces(result.faces))
+    result, vertices, faces, _ = _result_mesh(result)
+    mesh = pv.PolyData(np.array(vertices, dtype=np.float64), _vtk_faces(faces))
     weights = handle_weights(result)
     for i in range(weights.shape[1]):
         mesh.point_data.set_array(weights[:, i], handle_label(result.handles, i))
-    constrained = np.zeros(len(result.vertices), dtype=np.uint8)
+    constrained = np.zeros(len(vertices), dtype=np.uint8)
     constrained[result.constrained] = 1
     mesh.point_data.set_array(constrained, "constrained")
-    mesh.point_data.set_array(coords.xyz_to_lonlat(result.vertices), "lonlat")
+    mesh.point_data.set_array(coords.xyz_to_lonlat(vertices), "lonlat")
     return mesh
 
 
@@ -289,7 +293,8 @@ def _textured_soup(result: Result, weights: NDArray[np.float64], image: NDArray)
     soup.point_data.set_array(weights[faces.ravel()], "weight")
     rgb = display_rgb(image)
     if width > MAX_TEXTURE_WIDTH:
-        rgb = cv2.resize(rgb, (MAX_TEXTURE_WIDTH, MAX_TEXTURE_WIDTH // 2), interpolation=cv2.INTER_AREA)
+        # uint8 still (asarray: OpenCV's stub types any result as any MatLike)
+        rgb = np.asarray(cv2.resize(rgb, (MAX_TEXTURE_WIDTH, MAX_TEXTURE_WIDTH // 2), interpolation=cv2.INTER_AREA), np.uint8)
     texture = pv.Texture(rgb)  # pyvista flips the rows: t = 1 is the top row (lat 90)
     texture.repeat = True
     texture.interpolate = True
@@ -514,7 +519,7 @@ def weights_overlay(
     from .._checks import whole_number
     from ..method.locate import interpolate, locate_grid
 
-    result = _check_result(result)
+    result, vertices, faces, _ = _result_mesh(result)
     handle = _check_handle(result, handle)
     width = whole_number(width, "width", 2, even=True)
     if not 0.0 <= float(alpha) <= 1.0:
@@ -522,12 +527,13 @@ def weights_overlay(
     base = display_rgb(result.image if image is None else check_panorama(image))
     if base.shape[1] != width:
         shrink = base.shape[1] > width
-        base = cv2.resize(base, (width, width // 2), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
-    face, bary = locate_grid(result.vertices, result.faces, width)
-    w = interpolate(handle_weights(result)[:, handle], result.faces, face, bary)
+        # uint8 still (asarray: OpenCV's stub types any result as any MatLike)
+        base = np.asarray(cv2.resize(base, (width, width // 2), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR), np.uint8)
+    face, bary = locate_grid(vertices, faces, width)
+    w = interpolate(handle_weights(result)[:, handle], faces, face, bary)
     levels = np.clip(np.rint(np.asarray(w, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
     colours = cv2.applyColorMap(levels, cv2.COLORMAP_VIRIDIS)[..., ::-1]
-    out = cv2.addWeighted(colours, float(alpha), base, 1.0 - float(alpha), 0.0)
+    out = np.asarray(cv2.addWeighted(colours, float(alpha), base, 1.0 - float(alpha), 0.0), np.uint8)  # uint8, as above
     if draw:
         thin = max(1, width // 1024)
         for i in range(len(result.handles)):
@@ -564,14 +570,16 @@ def refinement_rounds(source: Result | object) -> list[tuple[NDArray[np.float64]
     from ..method.constraints import Constraints
     from ..method.mesh import adaptive_mesh
 
+    own: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None
     if isinstance(source, Result):
-        constraints = _check_result(source).constraints
+        checked, vertices, faces, _ = _result_mesh(source)
+        constraints, own = checked.constraints, (vertices, faces)
     elif isinstance(source, Constraints):
         constraints = source
     else:
         raise TypeError(f"expected a Result or Constraints, got {type(source).__name__}")
     mesh = adaptive_mesh(constraints.points)
-    final = (source.vertices, source.faces) if isinstance(source, Result) else (mesh.vertices, mesh.faces)
+    final = own if own is not None else (mesh.vertices, mesh.faces)
     return [*mesh.rounds, final]
 
 
@@ -760,7 +768,7 @@ class WeightsPane:
             if result is None:
                 self._show_message("no result yet")
                 return
-            if result.weights is None:
+            if result.weights is None or result.vertices is None:
                 self._show_message("this result has no mesh: its handles share one Möbius map (result.weights is None)")
                 return
             if not 0 <= self._handle < len(result.handles):
@@ -768,7 +776,7 @@ class WeightsPane:
                 return
             self.message = ""
             label = handle_label(result.handles, self._handle)
-            kwargs = {"window_size": self._window_size, "texture": self._texture, "zoom": self._zoom, "camera": "handle", "image": None}
+            kwargs: dict[str, Any] = {"window_size": self._window_size, "texture": self._texture, "zoom": self._zoom, "camera": "handle", "image": None}
             if self.backend == "static":
                 self.image = render_weights(result, self._handle, **kwargs)
                 self._view.value = _png(self.image)

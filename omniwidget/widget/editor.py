@@ -18,7 +18,7 @@ import json
 import os
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import anywidget
 import traitlets
@@ -176,7 +176,7 @@ class Editor(anywidget.AnyWidget):
     source_size = traitlets.List([0, 0]).tag(sync=True)
     preview = traitlets.Bytes(b"").tag(sync=True)
     folds = traitlets.Bytes(b"").tag(sync=True)
-    outputs = traitlets.List().tag(sync=True)
+    outputs: traitlets.List[list[list[float]]] = traitlets.List().tag(sync=True)
     status = traitlets.Dict().tag(sync=True)
     history = traitlets.Dict({"undo": 0, "redo": 0}).tag(sync=True)
 
@@ -317,7 +317,7 @@ class Editor(anywidget.AnyWidget):
         """Undo every transformation of handle ``index``: its output goes back to where it was drawn."""
         self._session.reset(index)
 
-    def move_arrow(self, index: int, tip: Any, which: str = "east") -> None:
+    def move_arrow(self, index: int, tip: Any, which: Literal["east", "west"] = "east") -> None:
         """Drag point handle ``index``'s output arrow tip to ``tip`` ``[lon, lat]``: it turns and zooms."""
         self._session.move_arrow(index, tip, which)
 
