@@ -53,7 +53,8 @@ def cvxpy_bbw(V: ArrayLike, F: ArrayLike, b: ArrayLike, bc: ArrayLike, *, tolera
         raise ImportError(f"cvxpy is needed for solver='cvxpy' (pip install cvxpy): {exc}") from exc
     v, f = as_mesh(V, F)
     idx, values = as_constraints(len(v), b, bc)
-    q = cp.psd_wrap(bilaplacian(v, f))  # symmetric positive semi-definite by construction
+    q = bilaplacian(v, f)
+    q = cp.psd_wrap(q / q.diagonal().max())  # scaled to numbers near 1 (the same minimiser); positive semi-definite
     w = cp.Variable(len(v))
     target = cp.Parameter(len(idx))
     problem = cp.Problem(cp.Minimize(0.5 * cp.quad_form(w, q)), [w[idx] == target, w >= 0, w <= 1])
