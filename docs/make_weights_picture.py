@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 
 import omniwidget as ow
-from omniwidget.viz import pane
 from omniwidget.app.cli import DEMO_HANDLES
+from omniwidget.viz import pane
 
 OUT = Path(__file__).resolve().parent / "images" / "weights.png"
 

@@ -247,6 +247,7 @@ class CageHandle:
         return coords.best_rotation(self.vertices, self.finals)
 
 
+#: Any one handle: a point, a line or a cage.
 Handle = PointHandle | LineHandle | CageHandle
 
 

@@ -2,5 +2,5 @@
 
 - :mod:`.images` reading and writing panoramas (orientation, bit depth, atomic writes).
 - :mod:`.frames` one map applied to many frames.
-- :mod:`.draw` handles drawn over an image (figures, the command line's ``draw``).
+- :mod:`.draw` handles drawn over an image (figures, ``omniwidget demo``).
 """

@@ -39,6 +39,7 @@ __all__ = [
 ]
 
 Order = Literal["nearest", "bilinear", "bicubic"]
+#: The resampling orders :func:`remap` offers (OpenCV's nearest, linear and cubic interpolation).
 ORDERS: tuple[Order, ...] = ("nearest", "bilinear", "bicubic")
 #: Rows of source padding: bicubic reads two pixels beyond the sample on each side.
 PAD = 3

@@ -1,6 +1,6 @@
 """The mesh-and-weights pane: the adaptive sphere mesh of a warp and its weights, per handle.
 
-A thin adapter over :mod:`omniwidget.core` for looking at Sec. 3.5 (the adaptive mesh, built
+A thin adapter over a warp's :class:`~omniwidget.raster.pipeline.Result` for looking at Sec. 3.5 (the adaptive mesh, built
 at the handles' *final* positions) and Sec. 3.2 (the bounded biharmonic weights), as in the
 paper's Fig. 9. Nothing here computes anything new: the mesh, the weights and the controls'
 Möbius maps all come from a :class:`~omniwidget.Result`.

@@ -1,6 +1,6 @@
 // The live result while a handle is dragged: eq. (2) evaluated per pixel on the GPU (WebGL2).
 //
-// The kernel sends, once per drag, the basis of omniwidget/core/live.py for the dragged
+// The kernel sends, once per drag, the basis of omniwidget/raster/live.py for the dragged
 // handle: per preview pixel of the region the handle weighs in, the other controls' part
 // of eq. (2)'s sum F(p) and the handle's own weights W_j(p), as half floats in layers of
 // four channels (F_x, F_y, F_z, W_0 | W_1 ... W_4 | ...). Outside the region the kernel's

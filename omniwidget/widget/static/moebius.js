@@ -271,7 +271,7 @@ export function bestRotation(source, target) {
   ];
 }
 
-// --- the handles' maps, as the kernel builds them (omniwidget/core/handles.py) ------------------
+// --- the handles' maps, as the kernel builds them (omniwidget/document/handles.py) ------------------
 // `h` is a handle of the document ({kind: "point" | "line" | "cage", ...}); `points` its output
 // control points as a drag on the result leaves them (a point: centre, east tip, west tip; a
 // line: start, middle, end; a cage: its vertices); `part` the control point dragged (-1: the
