@@ -33,7 +33,6 @@ def test_binder_requirements_are_the_packages_and_the_notebook_extras():
         *_extras(project, "notebooks"),
         *_extras(project, "pane-html"),
         *_extras(project, "fast"),
-        "libigl>=2.5",
         "jupyterlab>=4.0",
     ]:
         req = requirements.Requirement(spec)

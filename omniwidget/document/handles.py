@@ -388,7 +388,10 @@ def _describe(value: Any) -> str:
 def _number(value: Any, where: str, lo: float | None = None, hi: float | None = None) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise HandlesError(where, f"expected a number, got {_describe(value)}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer past float's range, 1e400 written out in full say
+        raise HandlesError(where, f"an integer of {value.bit_length()} bits is out of range (past a float's)") from None
     if not math.isfinite(value):
         raise HandlesError(where, f"expected a finite number, got {value}")
     if (lo is not None and value < lo) or (hi is not None and value > hi):
