@@ -139,7 +139,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("raster", ("omniwidget.raster",)),
     ("evaluate", ("omniwidget.evaluate",)),
     ("io", ("omniwidget.io", "omniwidget.data")),
-    ("app", ("omniwidget.app",)),
+    ("app", ("omniwidget.app", "omniwidget.batch")),
     ("widget and pane", ("omniwidget.widget", "omniwidget.viz", "omniwidget.__main__")),
     ("the package's names", ("omniwidget",)),
 ]

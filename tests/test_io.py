@@ -90,3 +90,19 @@ def test_alpha_is_refused_by_jpeg_rather_than_dropped(tmp_path):
         write_image(tmp_path / "a.jpg", np.zeros((4, 8, 4), np.uint8))
     write_image(tmp_path / "a.jpg", np.zeros((4, 8, 3), np.uint8))
     assert read_image(tmp_path / "a.jpg").shape == (4, 8, 3)
+
+
+def test_a_file_written_whole_gets_the_permissions_a_plain_write_gives(tmp_path):
+    import os
+    import stat
+
+    fresh = tmp_path / "fresh.bin"
+    atomic_write_bytes(fresh, b"x")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(fresh.stat().st_mode) == 0o666 & ~umask  # not the temporary file's 0o600
+    kept = tmp_path / "kept.bin"
+    kept.write_bytes(b"old")
+    kept.chmod(0o640)
+    atomic_write_bytes(kept, b"new")
+    assert kept.read_bytes() == b"new" and stat.S_IMODE(kept.stat().st_mode) == 0o640  # an existing file keeps its own

@@ -1,0 +1,620 @@
+"""Batches beyond one machine: many panoramas warped alike, in-process or on a Dask cluster.
+
+:func:`warp_files` warps each input file by one handles document or one saved map and
+writes its output, either here (threads, the default) or on a :mod:`dask.distributed`
+cluster (``client=`` a :class:`distributed.Client` or a scheduler's address). Every file is
+its own task; only paths travel through the scheduler, never pixels: each worker reads its
+inputs and writes its outputs on storage it shares with the others (a network file system,
+say), so the paths must name the same files on every worker.
+
+What travels once per worker, not once per task: a small *recipe* (the handles document, or
+the saved map, plus the output width, the resampling and the fit), scattered to every
+worker with ``client.scatter(..., broadcast=True)`` before the tasks are sent. From it each
+worker computes what it needs once per size and keeps it while the batch runs:
+
+- with ``handles=``, the inverse map for each output width (``warp(...).inverse_map()``,
+  what ``omniwidget warp`` computes from its first frame; it depends only on the handles
+  and the output width), then the source coordinates for each input width;
+- with ``map=``, only the source coordinates for each input width (the map is in degrees,
+  so one map serves inputs of any size).
+
+Why on the workers rather than once on the client: the client need not see the files (it
+would have to read them to learn their sizes), panoramas of several sizes are met where they
+are read, and the map of a large output (268 MB of float32 at 8192 x 4096) is not sent from
+the client to every worker, while the handles are a few hundred bytes. The workers compute
+it at the same time, so on separate machines the batch waits for one map computation; the
+price is that computation's CPU time once per worker (and several workers on one machine
+share its cores meanwhile). The computation is deterministic (the same bytes in any process
+with the same versions; the batch warns about workers whose omniwidget, numpy or OpenCV
+differ), so the outputs are the bytes a local run writes. To compute a map only once in
+all, save it (``omniwidget warp FRAME -H handles.json --map map.npy``, or
+``Result.inverse_map()``) and pass it as ``map=``: it is then sent once to every worker.
+(A map computed as one Dask task that the other tasks wait for was tried and dropped: a task
+waiting for it must leave its thread to the map's task, and the scheduler then starts more
+tasks, each holding a decoded image, for as long as the map takes.)
+
+Failures: a task that raises is run again up to ``retries`` times (Dask's ``retries=``, or a
+loop in-process); a task whose worker dies is rescheduled by Dask itself (up to the
+scheduler's ``distributed.scheduler.allowed-failures``). A file that still fails is listed
+in the :class:`BatchReport` with its error and the others are written all the same.
+Outputs are written through a temporary file and a rename
+(:func:`~omniwidget.io.images.write_image`): a worker killed mid-write leaves at most a
+temporary file, which the task's next attempt removes, and never a partial output; an
+attempt run twice writes the same bytes twice. So no output is lost, duplicated or half
+written.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import threading
+import time
+import uuid
+from collections import OrderedDict
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..document.handles import Handles, load_handles
+from ..errors import ImageError, OmniwidgetError
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+    from ..io.images import Fit
+    from ..raster.warping import Order
+
+__all__ = ["BatchReport", "FileReport", "warp_files"]
+
+#: File suffixes an output may have (the formats :func:`~omniwidget.io.images.write_image` writes).
+OUTPUT_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".npy")
+
+#: Source coordinates (and, with a fixed output width, inverse maps) a process keeps, least
+#: recently used dropped first: one per input size, each 2 x 4 bytes per output pixel.
+CACHE_ENTRIES = 4
+
+#: Where the task keys of a batch start: the name of its task group on the Dask dashboard.
+TASK_PREFIX = "omniwidget-warp"
+
+
+@dataclass(frozen=True)
+class FileReport:
+    """What happened to one input of :func:`warp_files`.
+
+    Attributes
+    ----------
+    input, output : Path
+        The file read and the file written (as given: paths on the workers' storage).
+    seconds : float or None
+        Time of the attempt that succeeded, reading and writing included (and computing
+        the map, for the first file of its size on a worker); None if it failed.
+    error : str or None
+        Why the file was not written (after every retry), naming it; None if it was.
+    worker : str or None
+        Where it ran: the Dask worker's address, ``"local"`` in-process; None if it failed.
+    task : str or None
+        The Dask task's key (its history: ``client.story(task)``); None in-process.
+    map_seconds : float
+        The part of ``seconds`` spent computing a map or source coordinates (0 when the
+        worker had them already).
+    """
+
+    input: Path
+    output: Path
+    seconds: float | None = None
+    error: str | None = None
+    worker: str | None = None
+    task: str | None = None
+    map_seconds: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        """The output was written."""
+        return self.error is None
+
+
+@dataclass(frozen=True)
+class BatchReport:
+    """What :func:`warp_files` did: one :class:`FileReport` per input, in the order of the inputs.
+
+    Attributes
+    ----------
+    files : tuple of FileReport
+    seconds : float
+        Wall time of the whole batch, as the caller waited for it.
+    scheduler : str or None
+        The Dask scheduler's address; None for an in-process run.
+    workers : int
+        Dask workers when the batch started, or threads in-process.
+    warnings : tuple of str
+        Conflicts the warp found in the handles (lines that cross, fold-overs), each once;
+        and workers whose omniwidget, numpy or OpenCV differ from the caller's.
+    """
+
+    files: tuple[FileReport, ...]
+    seconds: float
+    scheduler: str | None = None
+    workers: int = 1
+    warnings: tuple[str, ...] = field(default=())
+
+    @property
+    def written(self) -> tuple[Path, ...]:
+        """Outputs written, in the order of the inputs."""
+        return tuple(f.output for f in self.files if f.ok)
+
+    @property
+    def failed(self) -> tuple[tuple[Path, str], ...]:
+        """Inputs not warped, and why (``(input, error)``)."""
+        return tuple((f.input, f.error) for f in self.files if f.error is not None)
+
+    @property
+    def ok(self) -> bool:
+        """Every output was written."""
+        return all(f.ok for f in self.files)
+
+    @property
+    def files_per_second(self) -> float:
+        """Files written per second of wall time."""
+        return len(self.written) / self.seconds if self.seconds > 0 else float("inf")
+
+    def summary(self) -> str:
+        """A few lines for a person: how many were written where and how fast, then each failure."""
+        where = (
+            f"on the Dask cluster at {self.scheduler} ({self.workers} worker(s))"
+            if self.scheduler
+            else f"in-process ({self.workers} thread(s))"
+        )
+        lines = [
+            f"warped {len(self.written)} of {len(self.files)} file(s) {where} in {self.seconds:.2f} s: "
+            f"{self.files_per_second:.2f} files per second"
+        ]
+        lines += [f"failed: {error}" for _, error in self.failed]
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class _Recipe:
+    """What every task needs besides its two paths; sent once to each worker."""
+
+    handles: Handles | None
+    inverse_map: NDArray[np.floating] | None
+    width: int | None
+    order: Order
+    fit: Fit | None
+    digest: str  # names the handles or the map in the workers' caches
+
+
+def _recipe(handles: Any, inverse_map: Any, width: int | None, order: Order, fit: Fit | None) -> _Recipe:
+    from ..io.frames import load_map, map_coordinates
+    from ..io.images import FITS
+    from ..raster.warping import ORDERS
+
+    if (handles is None) == (inverse_map is None):
+        raise ValueError("give either handles= (a Handles document or a handles file) or map= (an inverse map or a .npy file)")
+    if order not in ORDERS:
+        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
+    if fit is not None and fit not in FITS:
+        raise ValueError(f"fit must be None or one of {', '.join(FITS)}, got {fit!r}")
+    if width is not None and (isinstance(width, bool) or not isinstance(width, (int, np.integer)) or width < 2 or width % 2):
+        raise ValueError(f"width must be an even integer of at least 2, got {width!r}")
+    width = None if width is None else int(width)
+    if handles is not None:
+        doc = handles if isinstance(handles, Handles) else load_handles(handles)
+        digest = hashlib.sha256(doc.to_json(indent=None).encode()).hexdigest()
+        return _Recipe(doc, None, width, order, fit, f"handles-{digest}")
+    if isinstance(inverse_map, (str, os.PathLike)):
+        m: NDArray[np.floating] = load_map(inverse_map)
+    else:
+        m = np.ascontiguousarray(inverse_map)
+        map_coordinates(m, 2)  # checks it is a map: ImageError saying what is wrong
+    if width is not None and width != m.shape[1]:
+        raise ValueError(f"width={width}: the map makes outputs {m.shape[1]} wide")
+    digest = hashlib.sha256(m.tobytes()).hexdigest()
+    return _Recipe(None, m, width, order, fit, f"map-{m.dtype.str}-{m.shape[0]}-{digest}")
+
+
+# --- on each worker (or in-process): the maps kept per size, one file's work -----------------
+
+_cache: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+_cache_lock = threading.Lock()
+_computing: dict[tuple[Any, ...], threading.Lock] = {}
+
+
+def _cached(key: tuple[Any, ...], make: Callable[[], Any]) -> tuple[Any, bool]:
+    """``(make(), True)`` the first time ``key`` is asked for in this process, else ``(the kept value, False)``.
+
+    Threads asking for the same key at once wait for one computation (``make`` never waits
+    for the cluster, so a waiting thread cannot hold up what it waits for).
+    """
+    with _cache_lock:
+        if key in _cache:
+            _cache.move_to_end(key)
+            return _cache[key], False
+        lock = _computing.setdefault(key, threading.Lock())
+    with lock:
+        with _cache_lock:
+            if key in _cache:
+                _cache.move_to_end(key)
+                return _cache[key], False
+        value = make()
+        with _cache_lock:
+            _cache[key] = value
+            while len(_cache) > CACHE_ENTRIES:
+                _cache.popitem(last=False)
+            _computing.pop(key, None)
+        return value, True
+
+
+def _forget(digest: str) -> None:
+    """Drop what this process keeps for one batch's handles or map (run on every worker when a batch ends)."""
+    with _cache_lock:
+        for key in [k for k in _cache if k[1] == digest]:
+            del _cache[key]
+
+
+def _environment() -> dict[str, str]:
+    """The versions that decide an output's bytes, in this process."""
+    import cv2
+
+    from .._version import __version__
+
+    return {"omniwidget": __version__, "numpy": np.__version__, "OpenCV": cv2.__version__}
+
+
+def _make_inverse_map(handles: Handles, width: int, order: Order) -> tuple[NDArray[np.floating], tuple[str, ...]]:
+    """The inverse map of ``handles`` at ``width``, and the warp's warnings: what ``omniwidget warp`` computes from its first frame.
+
+    It depends on the handles and the output width only (not on the pixels nor the input's
+    size), so a one-pixel source will do.
+    """
+    from ..raster.pipeline import warp
+
+    result = warp(np.zeros((1, 2), np.uint8), handles, width=width, order=order, warn=False)
+    return result.inverse_map(), tuple(result.warnings)
+
+
+def _coordinates(recipe: _Recipe, src_width: int) -> tuple[NDArray[np.float32], tuple[str, ...], float]:
+    """Source coordinates for inputs ``src_width`` wide, the warp's warnings, and the seconds this call spent making them."""
+    from ..io.frames import map_coordinates
+
+    start = time.perf_counter()
+    doc, saved = recipe.handles, recipe.inverse_map
+    out_width = saved.shape[1] if saved is not None else (recipe.width or src_width)
+
+    def inverse() -> tuple[NDArray[np.floating], tuple[str, ...]]:
+        if saved is not None:
+            return saved, ()
+        assert doc is not None
+        make = partial(_make_inverse_map, doc, out_width, recipe.order)
+        if recipe.width is None:  # the output is the input's size: this map serves these coordinates only
+            return make()
+        value: tuple[NDArray[np.floating], tuple[str, ...]] = _cached(("inverse", recipe.digest, out_width), make)[0]
+        return value  # one output width for inputs of every size: kept
+
+    def make() -> tuple[NDArray[np.float32], tuple[str, ...]]:
+        inverse_map, warnings = inverse()
+        return map_coordinates(inverse_map, src_width), warnings
+
+    (coordinates, warnings), made = _cached(("coordinates", recipe.digest, out_width, src_width), make)
+    return coordinates, warnings, (time.perf_counter() - start) if made else 0.0
+
+
+#: The temporary files of :func:`omniwidget._files.atomic_write_bytes`: ``.NAME.XXXXXXXX.tmp``
+#: (:func:`tempfile.mkstemp`'s eight random characters).
+_TEMPORARY = r"\.{name}\.[a-z0-9_]{{8}}\.tmp"
+
+
+def _remove_temporaries(dst: Path) -> None:
+    """Remove what an earlier attempt killed mid-write left of ``dst``: its temporary files, never another file's."""
+    pattern = re.compile(_TEMPORARY.format(name=re.escape(dst.name)))
+    try:
+        names = os.listdir(dst.parent)
+    except OSError:
+        return
+    for name in names:
+        if pattern.fullmatch(name):
+            (dst.parent / name).unlink(missing_ok=True)
+
+
+def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[float, float, tuple[str, ...]]:
+    """Read ``src``, warp it, write ``dst`` whole; ``(seconds, map seconds, warnings)``. Raises on any failure."""
+    from ..io.images import read_panorama, write_image
+    from ..raster.warping import pad_panorama, remap
+
+    start = time.perf_counter()
+    source, target = Path(src), Path(dst)
+    frame = read_panorama(source, recipe.fit)
+    coordinates, warnings, map_seconds = _coordinates(recipe, frame.shape[1])
+    out = remap(pad_panorama(frame), coordinates, recipe.order)
+    if make_folder:
+        target.parent.mkdir(exist_ok=True)
+    _remove_temporaries(target)
+    write_image(target, out)
+    return time.perf_counter() - start, map_seconds, warnings
+
+
+def _dask_task(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[float, float, tuple[str, ...], str]:
+    """:func:`_warp_file` on a Dask worker; also says which worker."""
+    from distributed import get_worker
+
+    return (*_warp_file(recipe, src, dst, make_folder), get_worker().address)
+
+
+def _describe(exc: BaseException, src: Path) -> str:
+    """One line naming the input and what went wrong."""
+    if isinstance(exc, OmniwidgetError):
+        text = str(exc)
+    elif type(exc).__name__ == "KilledWorker":
+        text = f"the workers running it died ({exc}); too little memory on the workers?"
+    elif isinstance(exc, OSError):
+        text = str(exc)
+    else:
+        text = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+    return text if str(src) in text else f"{src}: {text}"
+
+
+# --- the batch ---------------------------------------------------------------------------------
+
+
+def _pairs(inputs: Sequence[str | os.PathLike[str]], outputs: Any) -> tuple[list[tuple[Path, Path]], bool]:
+    """Each input with its output, checked (names alone, nothing read); and whether outputs go into a folder of ours."""
+    sources = [Path(p) for p in inputs]
+    if isinstance(outputs, (str, os.PathLike)):
+        folder = Path(outputs)
+        if folder.suffix.lower() in OUTPUT_SUFFIXES:
+            raise ImageError(f"{folder}: outputs= names a folder for the outputs (each keeps its input's name), or give a list of outputs")
+        names = [p.name for p in sources]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ImageError(f"inputs share the file name {twice[0]}: their outputs in {folder} would overwrite each other")
+        targets, make_folder = [folder / n for n in names], True
+    else:
+        targets, make_folder = [Path(p) for p in outputs], False
+        if len(targets) != len(sources):
+            raise ValueError(f"{len(sources)} inputs but {len(targets)} outputs")
+        seen: set[str] = set()
+        for t in targets:
+            key = os.path.normpath(os.path.abspath(t))
+            if key in seen:
+                raise ImageError(f"{t}: named as the output of two inputs")
+            seen.add(key)
+    unwritable = next((t for t in targets if t.suffix.lower() not in OUTPUT_SUFFIXES), None)
+    if unwritable is not None:
+        raise ImageError(f"{unwritable}: an output must end in {', '.join(OUTPUT_SUFFIXES)}")
+    read = {os.path.normpath(os.path.abspath(s)) for s in sources}
+    clash = next((t for t in targets if os.path.normpath(os.path.abspath(t)) in read), None)
+    if clash is not None:
+        raise ImageError(f"{clash}: the output would overwrite an input; choose another folder")
+    return list(zip(sources, targets, strict=True)), make_folder
+
+
+def warp_files(
+    inputs: Sequence[str | os.PathLike[str]],
+    outputs: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
+    *,
+    handles: Handles | str | os.PathLike[str] | None = None,
+    map: ArrayLike | str | os.PathLike[str] | None = None,  # the name the issue gives it (shadows the builtin here only)
+    client: Client | str | None = None,
+    retries: int = 2,
+    width: int | None = None,
+    order: Order = "bilinear",
+    fit: Fit | None = None,
+    workers: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> BatchReport:
+    """Warp many panoramas alike, each read and written by a task of its own, here or on a Dask cluster.
+
+    Parameters
+    ----------
+    inputs : sequence of path-like
+        Equirectangular images (2:1, or any shape with ``fit``), of any sizes: each size
+        gets its own map. With a cluster, paths as the workers see them.
+    outputs : path-like or sequence of path-like
+        A folder (made if missing, not its parents) where each output keeps its input's
+        file name, or one output path per input. The suffix picks the format
+        (:func:`~omniwidget.io.images.write_image`). Each is written whole or not at all.
+    handles : Handles or path-like, optional
+        The handles document (or its file) to warp by; the map is computed once per output
+        width on each worker (or once in-process).
+    map : array_like or path-like, optional
+        Instead of ``handles``: an inverse map ``(H, 2H, 2)`` of input ``[lon, lat]``
+        degrees per output pixel (``Result.inverse_map()``) or a ``.npy`` file of one
+        (``omniwidget warp --map``). Outputs are ``2H`` x ``H`` whatever the input size.
+    client : distributed.Client or str, optional
+        Where to run: a connected client, or a scheduler's address (``"tcp://host:8786"``)
+        or scheduler file (``.json``, from ``dask scheduler --scheduler-file``), connected
+        to and closed again here. By default the batch runs in-process, on threads.
+    retries : int
+        How many more times a file that fails is tried (a corrupt file fails every time; a
+        network file system's hiccup may not).
+    width : int, optional
+        Output width (even); default the input's (with ``map``, the map's).
+    order : {"nearest", "bilinear", "bicubic"}
+    fit : {"pad", "stretch"}, optional
+        Make each input 2:1 first (:func:`~omniwidget.io.images.to_equirectangular`); by
+        default an input that is not 2:1 fails.
+    workers : int, optional
+        Threads for an in-process run (default: CPUs + 1); a cluster has its own workers.
+    progress : callable, optional
+        ``progress(done, total)``, called in the calling thread as each file finishes.
+
+    Returns
+    -------
+    BatchReport
+        Per input: its output, the seconds it took, or the error that stopped it. A failed
+        file does not stop the others; ``report.ok`` says whether all were written.
+
+    Raises
+    ------
+    ValueError
+        Neither or both of ``handles`` and ``map``; a bad ``order``, ``fit``, ``width`` or
+        ``retries``.
+    OmniwidgetError
+        The handles or map cannot be read; outputs that would collide, overwrite an input
+        or have no image suffix (found before any work starts).
+    ImportError
+        ``client`` is given and :mod:`distributed` is not installed
+        (``pip install "omniwidget[dask]"``).
+    OSError
+        The scheduler cannot be reached.
+
+    Notes
+    -----
+    The outputs are the bytes ``omniwidget warp`` writes for several inputs on one machine:
+    the inverse map of the output size, turned into source coordinates for the input's width
+    (:func:`~omniwidget.io.frames.map_coordinates`) and resampled with OpenCV. (For one
+    input, ``omniwidget warp`` without ``--dask`` resamples by the blend's own coordinates,
+    which differ from the map's in the last bits, so the bytes may differ slightly.)
+
+    Examples
+    --------
+    >>> from omniwidget.app.batch import warp_files
+    >>> report = warp_files(["a.jpg", "b.jpg"], "out/", handles="handles.json", client="tcp://scheduler:8786")  # doctest: +SKIP
+    >>> print(report.summary())  # doctest: +SKIP
+    """
+    if isinstance(retries, bool) or not isinstance(retries, (int, np.integer)) or retries < 0:
+        raise ValueError(f"retries must be a non-negative integer, got {retries!r}")
+    if workers is not None and workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers!r}")
+    recipe = _recipe(handles, map, width, order, fit)
+    pairs, make_folder = _pairs(inputs, outputs)
+    start = time.perf_counter()
+    if client is None:
+        threads = (os.cpu_count() or 1) + 1 if workers is None else int(workers)
+        try:
+            files, warnings = _in_process(recipe, pairs, make_folder, int(retries), threads, progress)
+        finally:
+            _forget(recipe.digest)
+        return BatchReport(tuple(files), time.perf_counter() - start, None, threads, warnings)
+    files, warnings, address, count = _on_cluster(recipe, pairs, make_folder, int(retries), client, progress)
+    return BatchReport(tuple(files), time.perf_counter() - start, address, count, warnings)
+
+
+def _in_process(
+    recipe: _Recipe,
+    pairs: list[tuple[Path, Path]],
+    make_folder: bool,
+    retries: int,
+    threads: int,
+    progress: Callable[[int, int], None] | None,
+) -> tuple[list[FileReport], tuple[str, ...]]:
+    def one(pair: tuple[Path, Path]) -> FileReport:
+        src, dst = pair
+        error: BaseException | None = None
+        for _ in range(retries + 1):
+            try:
+                seconds, map_seconds, warnings = _warp_file(recipe, str(src), str(dst), make_folder)
+            except Exception as exc:  # reported, like a task's failure on a cluster
+                error = exc
+                continue
+            found.update(dict.fromkeys(warnings))
+            return FileReport(src, dst, seconds, None, "local", None, map_seconds)
+        assert error is not None
+        return FileReport(src, dst, error=_describe(error, src))
+
+    found: dict[str, None] = {}
+    files: list[FileReport] = []
+    with ThreadPoolExecutor(max(1, threads)) as pool:
+        for done, report in enumerate(pool.map(one, pairs), start=1):
+            files.append(report)
+            if progress is not None:
+                progress(done, len(pairs))
+    return files, tuple(found)
+
+
+def _connect(client: Any) -> tuple[Client, bool]:
+    """A connected client and whether it is ours to close."""
+    try:
+        from distributed import Client
+    except ImportError as exc:
+        raise ImportError(f'a Dask cluster needs dask.distributed: pip install "omniwidget[dask]" ({exc})') from None
+    if isinstance(client, Client):
+        return client, False
+    if not isinstance(client, (str, os.PathLike)):
+        raise TypeError(f"client must be a distributed.Client, a scheduler address or a scheduler file, got {type(client).__name__}")
+    text = os.fspath(client)
+    if text.endswith(".json") and Path(text).is_file():
+        return Client(scheduler_file=text), True
+    return Client(text), True
+
+
+def _on_cluster(
+    recipe: _Recipe,
+    pairs: list[tuple[Path, Path]],
+    make_folder: bool,
+    retries: int,
+    client: Any,
+    progress: Callable[[int, int], None] | None,
+) -> tuple[list[FileReport], tuple[str, ...], str, int]:
+    from distributed import as_completed
+
+    dask, ours = _connect(client)
+    futures: list[Any] = []
+    try:
+        address = str(dask.scheduler.address) if dask.scheduler is not None else str(client)
+        count = len(dask.scheduler_info().get("workers", {}))
+        # the recipe once per worker (workers that join later fetch it from a peer), then one task per file
+        shared = dask.scatter(recipe, broadcast=True, hash=True)
+        batch = uuid.uuid4().hex[:12]
+        keys = [f"{TASK_PREFIX}-{batch}-{i}" for i in range(len(pairs))]
+        futures = dask.map(
+            _dask_task,
+            [shared] * len(pairs),
+            [str(s) for s, _ in pairs],
+            [str(d) for _, d in pairs],
+            [make_folder] * len(pairs),
+            key=keys,
+            retries=retries,
+            pure=False,
+        )
+        index = {k: i for i, k in enumerate(keys)}
+        files: list[FileReport | None] = [None] * len(pairs)
+        found = dict.fromkeys(_mismatches(dask))
+        for done, future in enumerate(as_completed(futures), start=1):
+            i = index[future.key]
+            src, dst = pairs[i]
+            try:
+                seconds, map_seconds, warnings, worker = future.result()
+            except BaseException as exc:  # the task's own exception, or Dask's (KilledWorker, cancelled)
+                if isinstance(exc, (KeyboardInterrupt, SystemExit)):
+                    raise
+                files[i] = FileReport(src, dst, error=_describe(exc, src), task=keys[i])
+            else:
+                found.update(dict.fromkeys(warnings))
+                files[i] = FileReport(src, dst, seconds, None, worker, keys[i], map_seconds)
+            if progress is not None:
+                progress(done, len(pairs))
+        return [f for f in files if f is not None], tuple(found), address, count
+    finally:
+        unfinished = [f for f in futures if not f.done()]
+        if unfinished:  # interrupted: leave the cluster nothing to do for us
+            dask.cancel(unfinished)
+        try:
+            dask.run(_forget, recipe.digest)  # the maps are large: the workers keep them for one batch only
+        except Exception:  # a worker gone or going: what it kept goes with it
+            pass
+        if ours:
+            dask.close()
+
+
+def _mismatches(dask: Client) -> list[str]:
+    """Warnings for workers whose omniwidget, numpy or OpenCV differ from this machine's: their bytes may differ too."""
+    here = _environment()
+    try:
+        there: dict[str, dict[str, str]] = dask.run(_environment)
+    except Exception as exc:  # a worker that cannot even run this will fail its tasks, each reported
+        return [f"could not ask the workers for their versions ({type(exc).__name__}: {exc})"]
+    out = []
+    for worker, versions in sorted(there.items()):
+        differ = [f"{name} {versions.get(name)} (here {version})" for name, version in here.items() if versions.get(name) != version]
+        if differ:
+            out.append(f"the worker {worker} runs {', '.join(differ)}: its outputs may differ from this machine's")
+    return out
