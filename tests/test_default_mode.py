@@ -47,17 +47,37 @@ def _paper(doc: Handles) -> Handles:
     return Handles(doc.handles, Options(rectify=doc.options.rectify, anchor=None))
 
 
-@pytest.mark.parametrize(("family", "seed"), [("points", s) for s in (1, 3, 5, 7)] + [("mixed", s) for s in (1, 3)])
+def _slow(cases):
+    """Every case at full size is left to the full suite (CI); each test below has a fast twin at 1024 or 512 wide on
+    one or two scenes, with its px bounds scaled to the width (the same angle) and the others as they are. (The points'
+    twin stays at 1024: at 512 the zoom and turn measured from the map are off by up to 1.4° and 1.4%.)"""
+    return [
+        pytest.param(*case, marks=pytest.mark.slow) if isinstance(case, tuple) else pytest.param(case, marks=pytest.mark.slow)
+        for case in cases
+    ]
+
+
+@pytest.mark.parametrize(("family", "seed"), _slow([("points", s) for s in (1, 3, 5, 7)] + [("mixed", s) for s in (1, 3)]))
 def test_point_handles_show_their_target_zoom_and_turn(family, seed):
     """Part 1: the centre lands on the target to 0.25 px, the zoom is the scale to 1%, the turn the rotation to 0.1°."""
-    scene, doc, truth = family_scene(family, seed, W)
+    _check_points(family, seed, W)
+
+
+@pytest.mark.parametrize(("family", "seed"), [("points", 1), ("mixed", 1)])
+def test_point_handles_show_their_target_zoom_and_turn_at_1024(family, seed):
+    """The fast loop's twin (measured at 1024: centre 0 px, zoom 7.8e-16, turn 2.8e-14°)."""
+    _check_points(family, seed, 1024)
+
+
+def _check_points(family: str, seed: int, width: int) -> None:
+    scene, doc, truth = family_scene(family, seed, width)
     result = _warp(scene.image, doc)
     assert result.weights is not None  # a real blend with the background, not one map
     for i in truth["point_handles"]:
         f = point_fidelity(result, i)
         h = doc.handles[i]
-        print(f"\n{family} {seed} handles[{i}] scale {h.scale:.2f} rotation {h.rotation:.1f}: {f}")
-        assert f.centre_px <= POINT_EXACT["centre_px"], f
+        print(f"\n{family} {seed} at {width} handles[{i}] scale {h.scale:.2f} rotation {h.rotation:.1f}: {f}")
+        assert f.centre_px <= POINT_EXACT["centre_px"] * width / W, f
         assert f.zoom_error <= POINT_EXACT["zoom"] and f.rotation_error <= POINT_EXACT["rotation"], f
 
 
@@ -71,23 +91,43 @@ def test_a_zoomed_point_alone_magnifies_by_its_scale():
         assert f.rotation_error <= POINT_EXACT["rotation"], (scale, f)
 
 
-@pytest.mark.parametrize(("family", "seed"), [("cage_small", 1), ("cage_small", 3), ("cage_large", 1), ("cage_large", 3), ("cage_large", 5)])
+@pytest.mark.parametrize(
+    ("family", "seed"), _slow([("cage_small", 1), ("cage_small", 3), ("cage_large", 1), ("cage_large", 3), ("cage_large", 5)])
+)
 def test_a_moved_cage_carries_its_inside(family, seed):
     """Part 2: the inside of a cage moved rigidly shows what the motion says, to 0.5 px, whatever its size or shape."""
-    scene, doc, truth = family_scene(family, seed, W)
+    _check_moved_cage(family, seed, W)  # measured 2.1e-13 to 9.4e-13 px
+
+
+@pytest.mark.parametrize(("family", "seed"), [("cage_small", 1), ("cage_large", 1)])
+def test_a_moved_cage_carries_its_inside_at_512(family, seed):
+    """The fast loop's twin (measured at 512: 5.4e-14 and 8.5e-14 px)."""
+    _check_moved_cage(family, seed, 512)
+
+
+def _check_moved_cage(family: str, seed: int, width: int) -> None:
+    scene, doc, truth = family_scene(family, seed, width)
     result = _warp(scene.image, doc)
     (i,), (rotation,) = truth["cage_handles"], truth["rotations"]
     error = cage_fidelity(result, i, rotation)
-    print(f"\n{family} {seed}: {truth['across'][0]:.0f}° across, convex {truth['convex'][0]}: {error:.3g} px")
-    assert error <= CAGE_EXACT_PX, f"{error:.2e} px"  # measured 2.1e-13 to 9.4e-13 px
+    print(f"\n{family} {seed} at {width}: {truth['across'][0]:.0f}° across, convex {truth['convex'][0]}: {error:.3g} px")
+    assert error <= CAGE_EXACT_PX * width / W, f"{error:.2e} px"
 
 
-@pytest.mark.parametrize("seed", [1, 3, 5])
+@pytest.mark.parametrize("seed", _slow([1, 3, 5]))
 def test_a_fixed_cage_holds_its_inside_against_lines_that_pull(seed):
-    scene, doc, truth = family_scene("cage_fixed", seed, W)
+    _check_fixed_cage(seed, W)  # measured 2.6e-13 to 3.9e-13 px
+
+
+def test_a_fixed_cage_holds_its_inside_against_lines_that_pull_at_512():
+    _check_fixed_cage(1, 512)  # measured 9.2e-14 px at 512
+
+
+def _check_fixed_cage(seed: int, width: int) -> None:
+    scene, doc, truth = family_scene("cage_fixed", seed, width)
     result = _warp(scene.image, doc)
     error = cage_fidelity(result, truth["cage_handles"][0])
-    assert error <= CAGE_EXACT_PX, f"{error:.2e} px"  # measured 2.6e-13 to 3.9e-13 px
+    assert error <= CAGE_EXACT_PX * width / W, f"{error:.2e} px"
 
 
 def test_the_issues_large_cage_moves_its_centre_with_it():
@@ -112,18 +152,28 @@ def test_the_pane_shows_a_cage_with_weight_1_inside():
     np.testing.assert_allclose(handle_weights(result)[inside, i], 1.0, atol=1e-12)
 
 
-@pytest.mark.parametrize(("family", "seed"), [("long", s) for s in (1, 3, 5, 7)] + [("short", s) for s in (1, 3)])
+@pytest.mark.parametrize(("family", "seed"), _slow([("long", s) for s in (1, 3, 5, 7)] + [("short", s) for s in (1, 3)]))
 def test_lines_of_any_length_come_out_straight(family, seed):
     """Part 3: every line straight to 0.5 px at 2048, and never less straight than eq. (4)'s own map of it."""
-    scene, doc, truth = family_scene(family, seed, W)
+    _check_lines(family, seed, W)
+
+
+@pytest.mark.parametrize(("family", "seed"), [("long", 1), ("short", 1)])
+def test_lines_of_any_length_come_out_straight_at_512(family, seed):
+    """The fast loop's twin: 0.0375 px at 512 (LINE_PX's angle); measured up to 0.020 px (long 1) and 0.016 (short 1)."""
+    _check_lines(family, seed, 512)
+
+
+def _check_lines(family: str, seed: int, width: int) -> None:
+    scene, doc, truth = family_scene(family, seed, width)
     result = _warp(scene.image, doc)
     figures = result.quality.lines
     assert len(figures) == len(result.constraints.chains) == len(truth["line_handles"])  # no crossings here: one chain a line
     for line, blended in zip(truth["lines"], figures, strict=True):
-        paper = straightness(LineHandle(line.start, line.end).moebius()(coords.geodesic(line.start, line.end, T)), W, fit="best")
-        print(f"\n{family} {seed}: a {line.length:.0f}° line: {blended:.3f} px (eq. 4's own map: {paper:.3f} px)")
-        assert blended <= LINE_PX, f"{blended:.3f} px"
-        assert blended <= paper + 0.05
+        paper = straightness(LineHandle(line.start, line.end).moebius()(coords.geodesic(line.start, line.end, T)), width, fit="best")
+        print(f"\n{family} {seed} at {width}: a {line.length:.0f}° line: {blended:.3f} px (eq. 4's own map: {paper:.3f} px)")
+        assert blended <= LINE_PX * width / W, f"{blended:.3f} px"
+        assert blended <= paper + 0.05 * width / W
 
 
 def test_a_long_line_is_cut_into_pieces_on_one_straight_segment():
@@ -163,18 +213,28 @@ def test_the_papers_mode_is_the_paper():
     assert _warp(scene.image, point).weights is None
 
 
-@pytest.mark.parametrize("seed", [1, 3, 5])
+@pytest.mark.parametrize("seed", _slow([1, 3, 5]))
 def test_rooms_of_long_lines_are_far_calmer_than_the_papers(seed):
     """Part 4 on rooms of long lines, as far as it is met (``bench/bench_default.py``: the issue's figures are not
     reached on every scene). Seeds 1, 3 and 5 of the report half: the default folds at most as much as the paper,
     distorts a third as much and moves the sphere a tenth as far. Seed 7 is the known exception: two long lines'
     ends meet at a corner and the default folds 0.5% with distortion mean 3.5, against the paper's 0% and 1.1."""
-    scene, doc, _ = family_scene("long", seed, 1024)
+    _check_calmer(seed, 1024)
+
+
+def test_rooms_of_long_lines_are_far_calmer_than_the_papers_at_512():
+    """The fast loop's twin on seed 1 at 512 (measured: folds 0 and 0, distortion mean 0.047 and 0.74, p99 0.72 and
+    4.6, moved 0.18° and 16°, lines within 0.02 px)."""
+    _check_calmer(1, 512)
+
+
+def _check_calmer(seed: int, width: int) -> None:
+    scene, doc, _ = family_scene("long", seed, width)
     ours, theirs = _warp(scene.image, doc).quality, _warp(scene.image, _paper(doc)).quality
-    print(f"\nlong {seed}: default {ours.line()}\n  paper {theirs.line()}")
+    print(f"\nlong {seed} at {width}: default {ours.line()}\n  paper {theirs.line()}")
     assert ours.fold_over <= theirs.fold_over
     assert ours.distortion_mean < theirs.distortion_mean / 3 and ours.distortion_p99 < theirs.distortion_p99 / 2
-    assert ours.displacement < theirs.displacement / 10 and ours.straightness <= 0.5
+    assert ours.displacement < theirs.displacement / 10 and ours.straightness <= 0.5 * width / 1024
 
 
 #: The README's "What you mark is what you get" table, default mode: the worst over the report half's 20

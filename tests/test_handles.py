@@ -198,9 +198,21 @@ documents = st.fixed_dictionaries(
 )
 
 
+@pytest.mark.slow  # 600 documents: the full suite; the fast loop runs 100 (below)
 @settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(documents)
 def test_fuzzed_documents_are_valid_or_refused_by_name(data):
+    _check_fuzzed_document(data)
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(documents)
+def test_fuzzed_documents_are_valid_or_refused_by_name_fast(data):
+    """The fast loop's twin: the same documents strategy and checks, 100 draws."""
+    _check_fuzzed_document(data)
+
+
+def _check_fuzzed_document(data) -> None:
     text = json.dumps(data, allow_nan=True)
     try:
         doc = Handles.from_json(text)

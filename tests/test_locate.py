@@ -185,6 +185,8 @@ def test_grid_every_pixel_in_its_face(name, width):
     _agree(v, f, face, bary, face_p, bary_p, p)
 
 
+# 2-4 s a mesh on a busy 2-core machine: the full suite (the fast loop's warps at 1024 and 2048 locate their grids too)
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["icosphere4", "nonuniform", "poles-seam"])
 def test_grid_width_2048(name, rng):
     v, f = MESHES[name]

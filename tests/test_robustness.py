@@ -446,16 +446,23 @@ def test_a_self_intersecting_cage_holds_still(room):
     assert moved < FIXED_CAGE_PX, moved  # held still, whatever its shape: measured 4.0e-14 px at 512
 
 
+SECOND_LINES = [
+    (((-20.0, -10.0), (20.0, 30.0)), "crossing"),
+    (((20.0, 10.0), (50.0, -5.0)), "touching at an end"),
+    (((-10.0, 4.0), (30.0, 24.0)), "overlapping along the first"),  # on the first line's great circle
+    (((-20.0, 0.0), (20.0, 20.0)), "the same line twice"),
+]
+
+
+# every case in both modes; the fast loop runs every case in the default mode and crossing lines in the paper's, CI all
 @pytest.mark.parametrize(
-    ("second", "what"),
+    ("second", "what", "mode"),
     [
-        (((-20.0, -10.0), (20.0, 30.0)), "crossing"),
-        (((20.0, 10.0), (50.0, -5.0)), "touching at an end"),
-        (((-10.0, 4.0), (30.0, 24.0)), "overlapping along the first"),  # on the first line's great circle
-        (((-20.0, 0.0), (20.0, 20.0)), "the same line twice"),
+        pytest.param(second, what, mode, id=f"{mode}-second{i}-{what}", marks=[pytest.mark.slow] if mode == "paper" and i else [])
+        for mode in ("default", "paper")
+        for i, (second, what) in enumerate(SECOND_LINES)
     ],
 )
-@pytest.mark.parametrize("mode", ["default", "paper"])
 def test_lines_that_cross_touch_overlap_or_repeat_come_out_straight(room, second, what, mode):
     first = ((-20.0, 0.0), (20.0, 20.0))
     doc = _doc(_line(*first), _line(*second), _line((100.0, 30.0), (140.0, 35.0)), mode=mode)
@@ -534,6 +541,7 @@ for rectify in ("all", "each"):
 """
 
 
+@pytest.mark.slow  # two fresh processes and three warps at bench_blend's full size (16 s): the full suite
 def test_the_same_image_and_handles_give_byte_identical_output():
     """Run after run, in this process and in fresh ones: the weights and the image, bit for bit (threads and all)."""
     import subprocess

@@ -105,8 +105,14 @@ def test_padding_continues_over_the_poles(rng):
     np.testing.assert_array_equal(padded[3:-3, :3], image[:, -3:])
 
 
+# a 2048 warp a case: the fast loop runs the one across the seam, CI all three
 @pytest.mark.parametrize(
-    ("position", "target"), [([10.0, 20.0], [31.3, -8.7]), ([175.0, 5.0], [-178.2, 12.4]), ([-60.0, 70.0], [-75.5, 62.1])]
+    ("position", "target"),
+    [
+        pytest.param([10.0, 20.0], [31.3, -8.7], marks=pytest.mark.slow),
+        ([175.0, 5.0], [-178.2, 12.4]),
+        pytest.param([-60.0, 70.0], [-75.5, 62.1], marks=pytest.mark.slow),
+    ],
 )
 def test_point_handle_output_pixel_at_target_shows_position(position, target):
     doc = paper([PointHandle(tuple(position), tuple(target))])
@@ -128,7 +134,16 @@ def test_point_handle_moves_a_real_dot_to_its_target():
     assert coords.angular_distance(coords.xyz_to_lonlat(xyz), target) * W / 360 < 0.25
 
 
-@pytest.mark.parametrize(("scale", "rotation"), [(2.0, 0.0), (0.6, 0.0), (1.0, 30.0), (3.0, -75.0)])
+# a 2048 warp and its Jacobians a case (2-4 s on a busy 2-core machine): the fast loop runs the turn, CI all four
+@pytest.mark.parametrize(
+    ("scale", "rotation"),
+    [
+        pytest.param(2.0, 0.0, marks=pytest.mark.slow),
+        pytest.param(0.6, 0.0, marks=pytest.mark.slow),
+        (1.0, 30.0),
+        pytest.param(3.0, -75.0, marks=pytest.mark.slow),
+    ],
+)
 def test_zoom_and_rotation_at_the_target_measured_from_the_map(scale, rotation):
     position, target = [15.0, 25.0], [22.0, 18.0]
     doc = paper([PointHandle(tuple(position), tuple(target), rotation=rotation, scale=scale)])
@@ -155,6 +170,7 @@ def _lines(rng, n, max_length, max_lat=60.0, min_bend=5.0):
     return found
 
 
+@pytest.mark.slow  # 200 lines: the full suite; the fast loop checks the first 40 of them (below)
 def test_rectified_lines_come_out_straight(rng):
     """Lines up to 20° long within ±60° latitude, bent by 5 px or more: straight within 0.5 px at 2048.
 
@@ -163,8 +179,17 @@ def test_rectified_lines_come_out_straight(rng):
     are straight in an equirectangular image are meridians and parallels. bench/line_straightness.py
     measures the limit for longer lines (the paper's Fig. 14).
     """
+    _check_rectified_lines(rng, 200)
+
+
+def test_rectified_lines_come_out_straight_forty(rng):
+    """The fast loop's twin: the same draws (the same seed), the first 40 lines, the same bound."""
+    _check_rectified_lines(rng, 40)
+
+
+def _check_rectified_lines(rng, n: int) -> None:
     worst = 0.0
-    for start, end, curve in _lines(rng, 200, 20.0):
+    for start, end, curve in _lines(rng, n, 20.0):
         line = LineHandle(tuple(start), tuple(end))
         worst = max(worst, straightness(line.moebius()(curve), W))
     assert worst < 0.5
