@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["OmniwidgetError", "HandlesError", "ImageError"]
+__all__ = ["OmniwidgetError", "HandlesError", "ImageError", "VideoError"]
 
 
 class OmniwidgetError(ValueError):
@@ -20,3 +20,7 @@ class HandlesError(OmniwidgetError):
 
 class ImageError(OmniwidgetError):
     """An image cannot be read, written or used as an equirectangular panorama."""
+
+
+class VideoError(ImageError):
+    """A video cannot be read, warped or written: not a video, no video stream, frames not 2:1, a broken stream."""

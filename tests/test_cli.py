@@ -188,9 +188,24 @@ json_values = st.recursive(
 )
 
 
+FUZZED_FILES = st.one_of(json_values, st.fixed_dictionaries({"handles": st.lists(json_values, max_size=3)}))
+
+
+@pytest.mark.slow  # 150 files: the full suite; the fast loop runs 30 (below)
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-@given(st.one_of(json_values, st.fixed_dictionaries({"handles": st.lists(json_values, max_size=3)})))
+@given(FUZZED_FILES)
 def test_fuzzed_handles_files_never_give_a_traceback(files, capsys, data):
+    _check_fuzzed_file(files, capsys, data)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(FUZZED_FILES)
+def test_fuzzed_handles_files_never_give_a_traceback_fast(files, capsys, data):
+    """The fast loop's twin: the same files strategy and checks, 30 draws."""
+    _check_fuzzed_file(files, capsys, data)
+
+
+def _check_fuzzed_file(files, capsys, data) -> None:
     (files / "fuzz.json").write_text(json.dumps(data, allow_nan=True))
     code = main(["warp", str(files / "in.png"), "-H", str(files / "fuzz.json"), "-o", str(files / "fuzz.png")])
     err = capsys.readouterr().err

@@ -1,4 +1,4 @@
-"""The command line: ``omniwidget warp`` and ``omniwidget demo``.
+"""The command line: ``omniwidget warp``, ``omniwidget demo`` and ``omniwidget schema``.
 
 Bad input of any kind gives one line on stderr saying what and where, exit status 2, no
 traceback and no output file. Outputs are written whole (temporary file, then rename).
@@ -11,7 +11,7 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from .._version import __version__
 
@@ -19,6 +19,8 @@ if TYPE_CHECKING:
     from ..raster.pipeline import Result
 
 EXIT_BAD_INPUT = 2
+#: Ctrl+C, as a shell reports a process ended by SIGINT (128 + 2).
+EXIT_INTERRUPTED = 130
 
 #: The demo's handles on the bundled panorama: the bent top edges of the window wall and the
 #: television, rectified; a cage that holds the armchair still.
@@ -39,7 +41,7 @@ class _FramesFailed(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, not the whole usage text
+    def error(self, message: str) -> NoReturn:  # one line, not the whole usage text
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
@@ -51,24 +53,46 @@ def _parser() -> argparse.ArgumentParser:
     warp = sub.add_parser(
         "warp",
         help="warp panoramas by a handles file or a saved map",
-        description="Warp one panorama, or many frames alike (the map is computed once), by the handles in a JSON file or a saved map.",
+        description="Warp one panorama, many frames alike or a 360° video (the map is computed once), by the handles in a JSON file or a saved map.",
     )
-    warp.add_argument("input", type=Path, nargs="+", help="equirectangular image(s) (2:1); several: frames of one size")
+    warp.add_argument(
+        "input", type=Path, nargs="+", help="equirectangular image(s) (2:1); several: frames of one size; or one 360° video (.mp4, .mov, .mkv, ...)"
+    )
     source = warp.add_mutually_exclusive_group(required=True)
     source.add_argument("-H", "--handles", type=Path, help="handles file (JSON, see the README)")
     source.add_argument("--apply-map", type=Path, metavar="MAP", help="a map saved with --map (.npy) instead of handles")
     warp.add_argument(
-        "-o", "--output", type=Path, required=True, help="output image (.png, .jpg, .tif, .npy); with several inputs a folder"
+        "-o",
+        "--output",
+        type=Path,
+        required=True,
+        help="output image (.png, .jpg, .tif, .npy); with several inputs a folder; for a video .mp4, .m4v or .mov",
     )
     warp.add_argument("--width", type=int, help="output width in pixels (even; default: the input's)")
     warp.add_argument("--map", type=Path, help="also save the inverse map: float32 (H, W, 2) input [lon, lat] per output pixel, .npy")
     warp.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
-    warp.add_argument("--workers", type=int, help="threads for many frames (default: CPUs + 1)")
+    warp.add_argument("--workers", type=int, help="threads for many frames (default: CPUs + 1), or resampling a video's frames (default: 2)")
+    warp.add_argument(
+        "--dask",
+        metavar="SCHEDULER",
+        help="run each file as a task on a Dask cluster: the scheduler's address (tcp://host:8786) or its scheduler file (.json); "
+        "the paths must name the same files on every worker (pip install 'omniwidget[dask]')",
+    )
     warp.add_argument(
         "--fit",
         choices=("pad", "stretch"),
         help="make a non-2:1 input 2:1 first: pad adds black (transparent) rows above and below a 360°-wide panorama "
         "cropped in latitude, stretch resizes it (default: refuse it)",
+    )
+    warp.add_argument("--progress", action="store_true", help="show the progress on stderr even when it is not a terminal")
+    video = warp.add_argument_group("video", "for a video input (INPUT.mp4 ... -o OUTPUT.mp4); the sound is copied as it is")
+    video.add_argument("--codec", help="video encoder (default: libx264; for 10-bit input libx265, else libx264 in 10 bits)")
+    video.add_argument("--crf", type=int, help="constant rate factor, lower is better and larger (default: 18 for libx264, 20 for libx265)")
+    video.add_argument("--preset", help="encoder speed preset, ultrafast to placebo (default: medium)")
+    video.add_argument(
+        "--spherical",
+        action="store_true",
+        help="write spherical-video (360°) metadata even when the input has none (the input's is always carried over)",
     )
 
     demo = sub.add_parser(
@@ -76,6 +100,12 @@ def _parser() -> argparse.ArgumentParser:
     )
     demo.add_argument(
         "-o", "--output-dir", type=Path, default=Path("omniwidget-demo"), help="folder for the pictures (default: ./omniwidget-demo)"
+    )
+
+    sub.add_parser(
+        "schema",
+        help="print the JSON Schema of the handles file",
+        description="Print the JSON Schema (draft 2020-12) of the handles file, for editors and other programs that write one.",
     )
     return parser
 
@@ -128,7 +158,14 @@ def _cmd_warp(args: argparse.Namespace) -> None:
         raise ImageError(f"--width {args.width}: the width must be even and at least 2")
     if args.workers is not None and args.workers < 1:
         raise ImageError(f"--workers {args.workers}: at least one thread")
-    if len(args.input) == 1 and args.apply_map is None:
+    video_only = [f"--{name}" for name in ("codec", "crf", "preset", "spherical") if getattr(args, name) not in (None, False)]
+    if any(p.suffix.lower() in _VIDEO_SUFFIXES for p in args.input) or args.output.suffix.lower() in _VIDEO_SUFFIXES:
+        _warp_video(args)
+    elif video_only:
+        raise ImageError(f"{video_only[0]} is for a video input (INPUT.mp4 ... -o OUTPUT.mp4)")
+    elif args.dask is not None:
+        _warp_on_dask(args)
+    elif len(args.input) == 1 and args.apply_map is None:
         _warp_one(args)
     else:
         _warp_frames(args)
@@ -214,7 +251,7 @@ def _warp_frames(args: argparse.Namespace) -> None:
         write_image(args.map, inverse_map)
     if len(outputs) > 1:
         args.output.mkdir(exist_ok=True)
-    progress = _progress_bar if len(outputs) > 1 and sys.stderr.isatty() else None
+    progress = _progress_bar if len(outputs) > 1 and (sys.stderr.isatty() or args.progress) else None
     report = warp_frames(
         args.input, outputs, coordinates, first.shape[:2], order=args.order, workers=args.workers, progress=progress, fit=args.fit
     )
@@ -227,6 +264,146 @@ def _warp_frames(args: argparse.Namespace) -> None:
         for _, why in report.failed:
             print(f"omniwidget warp: error: {why}", file=sys.stderr)
         raise _FramesFailed(f"{len(report.failed)} of {len(args.input)} frames were not warped (see above)")
+
+
+def _warp_on_dask(args: argparse.Namespace) -> None:
+    """``--dask``: each file a task on the cluster (:func:`omniwidget.app.batch.warp_files`); the workers read and write the files."""
+    from ..document.handles import load_handles
+    from ..errors import ImageError, OmniwidgetError
+    from ..io.frames import load_map
+    from .batch import warp_files
+
+    if args.map is not None:
+        raise ImageError("--map with --dask: save the map on this machine first (omniwidget warp FRAME -H ... --map MAP.npy), then --apply-map MAP.npy")
+    if args.workers is not None:
+        raise ImageError("--workers sets threads on this machine; with --dask the cluster's workers run the files (dask worker --nthreads)")
+    outputs = _frame_outputs(args)
+    if len(outputs) > 1:
+        args.output.mkdir(exist_ok=True)
+    handles = load_handles(args.handles) if args.handles is not None else None
+    saved = load_map(args.apply_map) if args.apply_map is not None else None
+    if saved is not None and args.width is not None and args.width != saved.shape[1]:
+        raise ImageError(f"--width {args.width}: the map {args.apply_map} makes frames {saved.shape[1]} wide")
+    progress = _progress_bar if len(outputs) > 1 and sys.stderr.isatty() else None
+    try:
+        report = warp_files(
+            args.input, outputs, handles=handles, map=saved, client=args.dask, width=args.width, order=args.order, fit=args.fit, progress=progress
+        )
+    except ImportError as exc:
+        raise OmniwidgetError(str(exc)) from None
+    for message in report.warnings:
+        print(f"omniwidget: warning: {message}", file=sys.stderr)
+    print(report.summary().splitlines()[0])
+    if report.failed:
+        for _, why in report.failed:
+            print(f"omniwidget warp: error: {why}", file=sys.stderr)
+        raise _FramesFailed(f"{len(report.failed)} of {len(report.files)} files were not warped (see above)")
+
+
+#: Names the command line reads as videos (omniwidget.io.video.INPUT_SUFFIXES, without importing it).
+_VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv", ".webm", ".avi", ".mts", ".m2ts", ".ts")
+
+
+class _VideoProgress:
+    """The progress of a video on stderr: a bar redrawn in place on a terminal, else a line every few seconds."""
+
+    def __init__(self, tty: bool) -> None:
+        self.tty = tty
+        self.start = time.perf_counter()
+        self.shown = -1.0
+
+    def __call__(self, done: int, total: int | None) -> None:
+        now = time.perf_counter()
+        complete = total is not None and done >= total
+        if not (done == 1 or complete or now - self.shown >= (0.1 if self.tty else 1.0)):
+            return
+        self.shown = now
+        fps = done / (now - self.start) if now > self.start else 0.0
+        if total:
+            width = 30
+            filled = min(width, round(width * done / total))
+            left = f", {_clock((total - done) / fps)} left" if fps > 0 and not complete else ""
+            text = f"[{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames, {fps:.1f} fps{left}"
+        else:
+            text = f"{done} frames, {fps:.1f} fps"
+        if self.tty:
+            print(f"\romniwidget: {text}\033[K", end="", file=sys.stderr, flush=True)
+        else:
+            print(f"omniwidget: {text}", file=sys.stderr, flush=True)
+
+    def finish(self) -> None:
+        """End the bar's line on a terminal, so that what follows starts on a line of its own."""
+        if self.tty and self.shown >= 0:
+            print(file=sys.stderr, flush=True)
+
+
+def _clock(seconds: float) -> str:
+    seconds = max(0, round(seconds))
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}" if seconds >= 3600 else f"{seconds // 60}:{seconds % 60:02d}"
+
+
+def _warp_video(args: argparse.Namespace) -> None:
+    """One video to one video: the map once (from the first frame, or --apply-map), then every frame by it (omniwidget.io.video)."""
+    from ..document.handles import load_handles
+    from ..errors import ImageError
+    from ..io.frames import load_map
+    from ..io.images import write_image
+    from ..io.video import OUTPUT_SUFFIXES, VideoReader, warp_video
+
+    if len(args.input) != 1:
+        raise ImageError("a video is warped on its own: omniwidget warp INPUT.mp4 (-H handles.json | --apply-map MAP.npy) -o OUTPUT.mp4")
+    (source,) = args.input
+    if source.suffix.lower() not in _VIDEO_SUFFIXES:
+        raise ImageError(f"{args.output}: a video output needs a video input ({', '.join(_VIDEO_SUFFIXES)}), and {source} is not one")
+    for flag, value in (("--fit", args.fit), ("--dask", args.dask)):
+        if value is not None:
+            raise ImageError(f"{flag} is not for videos")
+    if _same_file(args.output, source):
+        raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
+    _check_output(args.output, OUTPUT_SUFFIXES, "output video")
+    if args.width is not None and args.width % 4:
+        raise ImageError(f"--width {args.width}: a video's width must be a multiple of 4 (4:2:0 video has even sizes)")
+    start = time.perf_counter()
+    if args.apply_map is not None:
+        inverse_map = load_map(args.apply_map)
+        if args.width is not None and args.width != inverse_map.shape[1]:
+            raise ImageError(f"--width {args.width}: the map {args.apply_map} makes frames {inverse_map.shape[1]} wide")
+    else:
+        handles = load_handles(args.handles)
+        with VideoReader(source) as video:  # refuses what is no 360° video before any work
+            first = video.read_at(video.info.start)
+        inverse_map = _warp_quietly(first, handles, width=args.width, order=args.order).inverse_map()
+    map_seconds = time.perf_counter() - start
+    progress = _VideoProgress(sys.stderr.isatty()) if sys.stderr.isatty() or args.progress else None
+    try:
+        report = warp_video(
+            source,
+            args.output,
+            inverse_map,
+            order=args.order,
+            codec=args.codec,
+            crf=args.crf,
+            preset=args.preset,
+            spherical=True if args.spherical else None,
+            workers=args.workers,
+            progress=progress,
+        )
+    finally:
+        if progress is not None:
+            progress.finish()
+    if args.map is not None:
+        write_image(args.map, inverse_map)
+    for stream in report.dropped:
+        print(f"omniwidget: note: not copied: {stream}", file=sys.stderr)
+    w, h = report.size
+    settings = ", ".join(f"{k} {v}" for k, v in report.options.items() if k in ("crf", "preset"))
+    sound = f"{len(report.audio)} audio stream(s) copied" if report.audio else "no audio"
+    metadata = "spherical metadata written" if report.spherical is not None else "no spherical metadata (--spherical writes it)"
+    print(
+        f"warped {report.frames} frame(s) to {w} x {h} in {report.seconds:.2f} s: {report.fps:.1f} frames per second "
+        f"({report.codec} {report.pix_fmt}{', ' + settings if settings else ''}; {sound}; {metadata}; "
+        f"the map took {map_seconds + report.map_seconds:.2f} s)"
+    )
 
 
 def _cmd_demo(args: argparse.Namespace) -> None:
@@ -254,13 +431,21 @@ def _cmd_demo(args: argparse.Namespace) -> None:
     print(f"rectified {len(handles)} handle(s) in {seconds:.3f} s; wrote {out}/before.png, after.png, before_after.png, handles.json")
 
 
+def _cmd_schema(args: argparse.Namespace) -> None:
+    import json
+
+    from ..document.schema import handles_schema
+
+    print(json.dumps(handles_schema(), indent=2))
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     from ..errors import OmniwidgetError
 
     args = _parser().parse_args(argv)
     try:
-        {"warp": _cmd_warp, "demo": _cmd_demo}[args.command](args)
+        {"warp": _cmd_warp, "demo": _cmd_demo, "schema": _cmd_schema}[args.command](args)
     except OmniwidgetError as exc:
         print(f"omniwidget {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -273,6 +458,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except MemoryError:
         print(f"omniwidget {args.command}: error: not enough memory for this image (try a smaller --width)", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:  # Ctrl+C: outputs are written whole or not at all, so none is left half-written
+        newline = "\n" if sys.stderr.isatty() else ""  # the terminal has echoed ^C
+        print(f"{newline}omniwidget {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return 0
 
 

@@ -15,6 +15,7 @@ through ``on_message(content, buffers)``.
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import json
 import os
@@ -31,13 +32,14 @@ from numpy.typing import NDArray
 
 from .._checks import whole_number
 from ..document.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
-from ..errors import HandlesError, ImageError
+from ..errors import HandlesError, ImageError, VideoError
 from ..io.draw import display_rgb
 from ..io.images import check_format, check_panorama, read_image, write_image
 from ..sphere import coords
 from ._latest import Latest
 
 if TYPE_CHECKING:
+    from ..io.video import VideoReader, VideoReport
     from ..method.constraints import Constraints
     from ..raster.pipeline import Result
 
@@ -221,6 +223,47 @@ def _result_location(image_path: Path | None, result: NDArray) -> Path:
     return base.with_name(base.name + ".npy")  # pragma: no cover - .npy holds any array
 
 
+# --- videos ------------------------------------------------------------------------------------
+def _frame_index(video: VideoReader, frame: Any, seconds: Any) -> int:
+    """The frame chosen by its index (``frame``) or by its time (``seconds`` from the video's start); 0 by default."""
+    count = len(video)
+    if frame is not None and seconds is not None:
+        raise TypeError("give frame (an index) or time (seconds), not both")
+    if seconds is not None:
+        if isinstance(seconds, bool) or not isinstance(seconds, (int, float, np.integer, np.floating)) or not np.isfinite(seconds):
+            raise TypeError(f"time must be a number of seconds, got {seconds!r}")
+        if not 0 <= seconds < count * video.frame_interval:
+            raise ValueError(f"time {seconds} s: the video is {count * video.frame_interval:.3f} s long ({count} frames)")
+        return min(count - 1, int(np.floor(float(seconds) / video.frame_interval + 1e-6)))
+    if frame is None:
+        return 0
+    if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)):
+        raise TypeError(f"frame must be a frame index (an int; time= takes seconds), got {frame!r}")
+    if not 0 <= frame < count:
+        raise IndexError(f"frame {frame}: the video has {count} frames (0 to {count - 1})")
+    return int(frame)
+
+
+def _video_location(video_path: Path) -> Path:
+    """Where Save video writes: ``clip.mp4`` gives ``clip-rectified.mp4`` next to it (MP4 for inputs in other containers)."""
+    from ..io.video import OUTPUT_SUFFIXES
+
+    suffix = video_path.suffix if video_path.suffix.lower() in OUTPUT_SUFFIXES else ".mp4"
+    return video_path.with_name(f"{video_path.stem}{RESULT_SUFFIX}{suffix}")
+
+
+#: Save video's threads running, each with its cancel: stopped when the interpreter exits.
+_VIDEO_JOBS: set[tuple[threading.Thread, threading.Event]] = set()
+
+
+@atexit.register
+def _cancel_video_jobs() -> None:
+    """Cancel every video being saved and let it clean up (its temporary file) before the interpreter finalizes."""
+    for job, cancel in list(_VIDEO_JOBS):
+        cancel.set()
+        job.join(10.0)
+
+
 def _same_file(a: Path, b: Path) -> bool:
     try:
         return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
@@ -265,10 +308,15 @@ class EditingSession:
     Parameters are those of :class:`omniwidget.Editor` (``image``, ``handles``,
     ``preview_width``, ``handles_path``, ``autosave``, ``quality``), and:
 
+    frame, time : int, float, optional
+        For a video file (:func:`~omniwidget.io.video.is_video_path`): the frame shown, by
+        index or by seconds from the start (default: the first); see :meth:`set_frame` and
+        :meth:`save_video`.
     on_change : callable, optional
         ``on_change(changes)`` with a dict of the fields that changed (``handles``,
-        ``history``, ``status``, ``preview``, ``folds``, ``outputs``); results arrive from
-        the worker thread.
+        ``history``, ``status``, ``preview``, ``folds``, ``outputs``; for a video ``frame``
+        and ``source``, the new frame as :meth:`display_source` gives it); results arrive
+        from the worker thread, Save video's progress from its own.
     on_message : callable, optional
         ``on_message(content, buffers)``: a message for the front end (a command done, the
         live drag's basis, an image file to download).
@@ -285,14 +333,27 @@ class EditingSession:
         handles_path: str | os.PathLike[str] | None = None,
         autosave: bool | str | os.PathLike[str] | None = None,
         quality: bool = True,
+        frame: int | None = None,
+        time: float | None = None,
         on_change: Callable[[Changes], None] | None = None,
         on_message: Callable[[dict, list], None] | None = None,
     ) -> None:
+        self._video: VideoReader | None = None
+        self.frame = 0
         if isinstance(image, (str, os.PathLike)):
             self._image_path: Path | None = Path(image)
-            image = read_image(image)
+            from ..io.video import VideoReader, is_video_path
+
+            if is_video_path(image):
+                self._video = VideoReader(image)
+                self.frame = _frame_index(self._video, frame, time)
+                image = self._video.read(self.frame)
+            else:
+                image = read_image(image)
         else:
             self._image_path = None
+        if self._video is None and (frame is not None or time is not None):
+            raise TypeError("frame and time choose a frame of a video; the editor was given an image")
         self._image = check_panorama(image)
         self._image.flags.writeable = False
         self._scaled: dict[int, NDArray] = {}
@@ -344,6 +405,10 @@ class EditingSession:
             )
         self.handles: dict = doc.to_dict()
         self.history = {"undo": len(self._undo), "redo": len(self._redo)}
+        self._video_job: threading.Thread | None = None
+        self._video_cancel: threading.Event | None = None
+        self._video_error: BaseException | None = None
+        self._video_report: VideoReport | None = None
 
     def start(self) -> None:
         """Compute the first result (in the worker)."""
@@ -384,6 +449,57 @@ class EditingSession:
     def display_source(self) -> bytes:
         """The panorama as the browser shows it: a JPEG at most :data:`DISPLAY_WIDTH` wide."""
         return _jpeg(display_rgb(self._downscaled(DISPLAY_WIDTH)))
+
+    # --- a video: its frames ---------------------------------------------------------------
+    @property
+    def video(self) -> VideoReader | None:
+        """The video the editor was opened on (its frames, :class:`~omniwidget.io.video.VideoReader`), None for an image."""
+        return self._video
+
+    @property
+    def frame_count(self) -> int:
+        """Frames of the video, 0 for an image."""
+        return len(self._video) if self._video is not None else 0
+
+    @property
+    def frame_interval(self) -> float:
+        """Seconds between the video's frames, 0.0 for an image."""
+        return self._video.frame_interval if self._video is not None else 0.0
+
+    @property
+    def frame_time(self) -> float:
+        """Seconds from the video's start to the frame shown, 0.0 for an image."""
+        return self.frame * self.frame_interval
+
+    def set_frame(self, frame: int | None = None, *, time: float | None = None) -> None:
+        """Show another frame of the video (by index, or by ``time`` in seconds) and recompute the preview on it.
+
+        The handles stay (no edit: no undo step, no autosave). The frame is read here; the
+        preview is computed in the worker, as after an edit.
+
+        Raises
+        ------
+        TypeError
+            For an image, or neither or both of ``frame`` and ``time``.
+        IndexError, ValueError
+            For a frame or a time outside the video.
+        """
+        if self._video is None:
+            raise TypeError("the editor shows an image, not a video: it has no frames to choose from")
+        if frame is None and time is None:
+            raise TypeError("give frame (an index) or time (seconds)")
+        index = _frame_index(self._video, frame, time)
+        if index == self.frame:
+            return
+        image = check_panorama(self._video.read(index))
+        image.flags.writeable = False
+        with self._lock:
+            self._image = image
+            self._scaled = {}
+            self._preview_source = self._downscaled(2 * self._preview_width)
+            self._full_result = None
+        self._publish(frame=index, source=self.display_source())
+        self._changed(self.document)
 
     @property
     def generation(self) -> int:
@@ -441,7 +557,7 @@ class EditingSession:
     def _changed(self, doc: Handles) -> None:
         """After every change of the handles: recompute the preview (and the control points' outputs)."""
         self._publish(history={"undo": len(self._undo), "redo": len(self._redo)})
-        key = json.dumps(doc.to_dict(), sort_keys=True)
+        key = self._key(doc.to_dict())
         self._schedule(lambda generation: self._compute(doc, key, generation, full=False))
 
     def _schedule(self, job: Callable[[int], None]) -> None:
@@ -457,8 +573,10 @@ class EditingSession:
             self._set_status(error=message)
 
     # --- computing -----------------------------------------------------------------------
-    def _key(self) -> str:
-        return json.dumps(self.handles, sort_keys=True)
+    def _key(self, handles: dict | None = None) -> str:
+        """The cache key of a result: the handles and, for a video, the frame they are warped on."""
+        key = json.dumps(self.handles if handles is None else handles, sort_keys=True)
+        return key if self._video is None else f"{key}#frame={self.frame}"
 
     def _full(self, doc: Handles, key: str, warn: bool) -> Any:
         """The full-size result of ``doc`` (whose :meth:`_key` is ``key``), kept for the next ask."""
@@ -644,6 +762,133 @@ class EditingSession:
         doc, key = self.document, self._key()
         self._schedule(lambda generation: self._save_image_job(doc, key, generation))
 
+    # --- save video ---------------------------------------------------------------------------
+    def save_video(self, path: str | os.PathLike[str] | None = None, *, wait: bool = False) -> Path:
+        """Warp the whole video by the map of the current handles and write it, in a thread of its own; return where.
+
+        The map is the full-size result's (:meth:`Result.inverse_map` at the video's width),
+        computed on the frame shown; every frame is then resampled by it
+        (:func:`~omniwidget.io.video.warp_video`: the sound, time stamps and spherical
+        metadata kept). :attr:`status` ``["video"]`` follows the job: ``state`` ("map",
+        "running", "done", "cancelled" or "error"), ``done`` and ``total`` frames, ``fps``,
+        ``path`` and a ``message``; :meth:`cancel_video` stops it, and nothing is written
+        then. The editor goes on meanwhile (edits, other frames).
+
+        Parameters
+        ----------
+        path : path-like, optional
+            ``.mp4``, ``.m4v`` or ``.mov``. Default: next to the video, ``clip.mp4`` giving
+            ``clip-rectified.mp4`` (MP4 for other containers).
+        wait : bool
+            Block until the video is written (or failed, or was cancelled) and raise its
+            error, for scripts.
+
+        Raises
+        ------
+        TypeError
+            If the editor shows an image.
+        VideoError
+            If a video is being saved already (``wait`` or not), or, with ``wait``, the
+            video could not be written; VideoCancelled when cancelled meanwhile.
+        """
+        if self._video is None or self._image_path is None:
+            raise TypeError("the editor shows an image, not a video: use save_image")
+        with self._lock:
+            if self._video_job is not None and self._video_job.is_alive():
+                raise VideoError("a video is being saved already; wait for it or cancel it first")
+            target = Path(path) if path is not None else _video_location(self._image_path)
+            doc, key = self.document, self._key()
+            cancel = threading.Event()
+            self._video_cancel = cancel
+            self._video_error = None
+            self._video_report = None
+            job = threading.Thread(target=self._video_job_run, args=(doc, key, target, cancel), name="omniwidget-save-video", daemon=True)
+            self._video_job = job
+        message = f"saving the video to {target}: computing the map..."
+        self._set_video(state="map", done=0, total=self.frame_count, fps=0.0, path=str(target), message=message)
+        _VIDEO_JOBS.add((job, cancel))
+        job.start()
+        if wait:
+            job.join()
+            if self._video_error is not None:
+                raise self._video_error
+        return target
+
+    def cancel_video(self) -> bool:
+        """Stop the video being saved (its partial file is removed); False when none is."""
+        job, cancel = self._video_job, self._video_cancel
+        if job is None or cancel is None or not job.is_alive():
+            return False
+        cancel.set()
+        return True
+
+    def wait_video(self, timeout: float | None = None) -> VideoReport | None:
+        """Block until the video being saved is written, failed or cancelled; its report (None unless written)."""
+        job = self._video_job
+        if job is not None:
+            job.join(timeout)
+            if job.is_alive():
+                raise TimeoutError(f"the video was not saved within {timeout} s")
+        return self._video_report
+
+    def _set_video(self, **fields: Any) -> None:
+        with self._lock:
+            self._set_status(video={**self.status.get("video", {}), **fields})
+
+    def _video_job_run(self, doc: Handles, key: str, target: Path, cancel: threading.Event) -> None:
+        """The save video thread: the map, then every frame; its progress and end in ``status["video"]``."""
+        try:
+            self._save_video(doc, key, target, cancel)
+        finally:
+            _VIDEO_JOBS.discard((threading.current_thread(), cancel))
+
+    def _save_video(self, doc: Handles, key: str, target: Path, cancel: threading.Event) -> None:
+        from ..io.video import VideoCancelled, warp_video
+
+        assert self._image_path is not None
+        start = time.perf_counter()
+        shown = 0.0
+
+        def progress(done: int, total: int | None) -> bool:
+            nonlocal shown
+            now = time.perf_counter()
+            if now - shown >= 0.2 or done == total:  # a few updates a second reach the browser
+                shown = now
+                fps = done / max(now - start, 1e-9)
+                message = f"saving the video: frame {done} of {total or '?'}, {fps:.1f} fps"
+                self._set_video(state="running", done=done, total=total or done, fps=round(fps, 1), message=message)
+            return not cancel.is_set()
+
+        try:
+            if self._image_path is not None and _same_file(target, self._image_path):
+                raise ImageError(f"{target}: is the input video, which the editor never overwrites; name another file")
+            the_map = self._full(doc, key, warn=False).inverse_map()
+            if cancel.is_set():
+                raise VideoCancelled(f"cancelled before the first frame; {target} was not written")
+            start = time.perf_counter()
+            report = warp_video(self._image_path, target, inverse_map=the_map, progress=progress, cancel=cancel)
+        except VideoCancelled as exc:
+            self._video_error = exc
+            self._set_video(state="cancelled", message=f"saving the video was cancelled: {exc}")
+            return
+        except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
+            self._video_error = exc
+            self.last_error = exc
+            reason = str(exc) if isinstance(exc, ImageError) else _exception_text(exc)  # a VideoError is an ImageError
+            self._set_video(state="error", message=f"could not save the video: {reason}")
+            return
+        self._video_report = report
+        self._set_video(
+            state="done",
+            done=report.frames,
+            total=report.frames,
+            fps=round(report.fps, 1),
+            message=(
+                f"{report.frames} frames ({report.size[0]} x {report.size[1]}) saved to {target} "
+                f"in {report.seconds:.1f} s, {report.fps:.1f} fps"
+            ),
+        )
+
     # --- edits -----------------------------------------------------------------------------
     def undo(self) -> bool:
         """Go back one edit; False when there is none."""
@@ -719,7 +964,7 @@ class EditingSession:
         document itself changes when the drag ends.
         """
         doc = as_document(document)
-        key = json.dumps(doc.to_dict(), sort_keys=True)
+        key = self._key(doc.to_dict())
         self._schedule(lambda generation: self._compute(doc, key, generation, full=False))
 
     def live_basis_message(self, index: Any) -> None:
@@ -787,6 +1032,12 @@ class EditingSession:
                 self.compute_full()
             elif op == "save_image":
                 self._save_image_in_worker()
+            elif op == "save_video":
+                self.save_video()
+            elif op == "cancel_video":
+                self.cancel_video()
+            elif op == "frame":
+                self.set_frame(content.get("frame"))
             elif op == "save":
                 path = self.save()
                 self._set_status(message=f"saved {len(self.document)} handles to {path}")

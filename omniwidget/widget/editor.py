@@ -91,7 +91,9 @@ class Editor(anywidget.AnyWidget):
     ----------
     image : ndarray or path-like
         The panorama, ``W = 2 H`` (an array as :func:`omniwidget.read_image` gives, or a
-        file). It stays in Python at full size; the browser gets a copy at most
+        file), or a 360° video file (``.mp4``, ``.mov``, ``.mkv``, ...; PyAV needed): its
+        frames are shown one at a time, and :meth:`save_video` (the widget's Save video)
+        writes the whole video warped by the current handles. It stays in Python at full size; the browser gets a copy at most
         :data:`DISPLAY_WIDTH` wide.
     handles : Handles, dict, str or path-like, optional
         The handles to start from: a document, its JSON-ready dict or text, or a handles file
@@ -126,8 +128,22 @@ class Editor(anywidget.AnyWidget):
         in one line under the image (``status["quality"]``), in a thread of its own,
         skipped when a newer edit comes first.
 
+    frame : int, optional
+        For a video (``Editor("clip.mp4")``, any file :func:`omniwidget.io.video.is_video_path`
+        names): the index of the frame shown to draw the handles on (from 0; default 0).
+    time : float, optional
+        For a video, instead of ``frame``: the frame shown at this many seconds from the
+        video's start (``time=2.5``).
+
     Attributes
     ----------
+    frame : int
+        The frame of the video shown (0 for an image); assign it, or move the widget's
+        slider, to show another one: the handles stay, the preview is recomputed on it.
+    frame_count : int
+        Frames of the video, 0 for an image (the slider is shown only for a video).
+    frame_interval : float
+        Seconds between frames, 0.0 for an image.
     handles : dict
         The handles document (JSON-ready), synced both ways: drawing in the browser updates
         it, assigning a document (dict, :class:`~omniwidget.Handles` or JSON text) redraws.
@@ -151,7 +167,10 @@ class Editor(anywidget.AnyWidget):
         fold-overs, naming handles), ``conflicts`` (their indices), ``kept`` (the indices of
         rectified lines over or close to a pole that the still background keeps as they are:
         drawn dashed in green, their warning shown on hover), ``fold_area`` (share of
-        the sphere shown turned over), ``seconds`` and ``width`` of the last computation.
+        the sphere shown turned over), ``seconds`` and ``width`` of the last computation;
+        for a video, ``video`` once Save video was asked for: ``state`` ("map", "running",
+        "done", "cancelled" or "error"), ``done`` and ``total`` frames, ``fps``, ``path``
+        and ``message``.
     autosave_path : Path or None
         The autosave file (see ``autosave``), None when autosave is off.
     last_error : BaseException or None
@@ -179,6 +198,9 @@ class Editor(anywidget.AnyWidget):
     outputs: traitlets.List[list[list[float]]] = traitlets.List().tag(sync=True)
     status = traitlets.Dict().tag(sync=True)
     history = traitlets.Dict({"undo": 0, "redo": 0}).tag(sync=True)
+    frame = traitlets.Int(0).tag(sync=True)
+    frame_count = traitlets.Int(0).tag(sync=True)
+    frame_interval = traitlets.Float(0.0).tag(sync=True)
 
     def __init__(
         self,
@@ -190,6 +212,8 @@ class Editor(anywidget.AnyWidget):
         height: int = 480,
         autosave: bool | str | os.PathLike[str] | None = None,
         quality: bool = True,
+        frame: int | None = None,
+        time: float | None = None,
     ) -> None:
         self._ready = False  # traits set by the session are no edits
         self._session = EditingSession(
@@ -199,6 +223,8 @@ class Editor(anywidget.AnyWidget):
             handles_path=handles_path,
             autosave=autosave,
             quality=quality,
+            frame=frame,
+            time=time,
             on_change=self._apply,
             on_message=lambda content, buffers: self.send(content, buffers or None),
         )
@@ -210,6 +236,9 @@ class Editor(anywidget.AnyWidget):
             source_size=[s.image.shape[1], s.image.shape[0]],
             history=s.history,
             status=s.status,
+            frame=s.frame,
+            frame_count=s.frame_count,
+            frame_interval=s.frame_interval,
         )
         self.on_msg(lambda _widget, content, _buffers: self._session.command(content))
         self._ready = True
@@ -230,6 +259,16 @@ class Editor(anywidget.AnyWidget):
         # from the browser or from Python: an edit; the session's own change (an undo, say) is none
         if self._ready and change["new"] != self._session.handles:
             self._session.edit(change["new"])
+
+    @traitlets.observe("frame")
+    def _on_frame(self, change: dict) -> None:
+        # assigned in Python (``editor.frame = 12``): show that frame; the session's own change is none
+        if self._ready and change["new"] != self._session.frame:
+            try:
+                self._session.set_frame(change["new"])
+            except Exception:
+                self.frame = self._session.frame
+                raise
 
     def set_state(self, sync_data: dict) -> None:
         """Apply state sent by the front end; a refused document (or value) is reported, not raised."""
@@ -296,6 +335,22 @@ class Editor(anywidget.AnyWidget):
     def save_image(self, path: str | os.PathLike[str] | None = None) -> Path:
         """Write the full-size result (:meth:`EditingSession.save_image`); return where."""
         return self._session.save_image(path)
+
+    def set_frame(self, frame: int | None = None, *, time: float | None = None) -> None:
+        """Show another frame of the video, by index or by ``time`` in seconds; the handles stay (:meth:`EditingSession.set_frame`)."""
+        self._session.set_frame(frame, time=time)
+
+    def save_video(self, path: str | os.PathLike[str] | None = None, *, wait: bool = False) -> Path:
+        """Warp the whole video by the current handles' map in the background; return where (:meth:`EditingSession.save_video`)."""
+        return self._session.save_video(path, wait=wait)
+
+    def cancel_video(self) -> bool:
+        """Stop the video being saved (nothing is written); False when none is."""
+        return self._session.cancel_video()
+
+    def wait_video(self, timeout: float | None = None):  # noqa: ANN201 - VideoReport or None
+        """Block until the video being saved is written, failed or cancelled; its report (None unless written)."""
+        return self._session.wait_video(timeout)
 
     def undo(self) -> bool:
         """Go back one edit; False when there is none."""

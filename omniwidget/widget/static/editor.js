@@ -5,8 +5,9 @@
 // omniwidget/sphere/coords.py (sphere.js). The pure parts are modules of their own, each
 // tested by node --test (tests/js): the sphere (sphere.js), the handles' control points and
 // arcs (handles.js), the view of the panorama on a canvas, which wraps across the ±180° seam
-// (view.js), hit testing (hit.js), the edits of the handles document (edits.js) and the
-// handles' Möbius maps (moebius.js). This file holds the DOM: the one state object, the
+// (view.js), hit testing (hit.js), the edits of the handles document (edits.js), the
+// handles' Möbius maps (moebius.js) and a video's frame label and Save video's status line
+// (video.js). This file holds the DOM: the one state object, the
 // canvases, the events, and the messages to and from the kernel.
 //
 // Drags happen here at display frame rate; only their end reaches the kernel, as a new
@@ -22,6 +23,7 @@ import { HIT, hitTest, onCurve, pointDistance } from "./hit.js";
 import { createLive, MOVING_PIXELS } from "./live.js";
 import { dragMaps, inverse } from "./moebius.js";
 import { geodesic } from "./sphere.js";
+import { frameLabel, videoRunning, videoStatusText } from "./video.js";
 import { copies, fitView, panBy, screenPath, screenToLonLat, toScreen, zoomAt } from "./view.js";
 
 /** @typedef {import("./sphere.js").LonLat} LonLat */
@@ -68,6 +70,8 @@ const SHORTCUTS = [
 // an edit made meanwhile would start from the handles before it and undo it, so none starts
 // until the kernel says the command is done ("done" message, sent after any change of the handles).
 const CHANGES_HANDLES = new Set(["undo", "redo", "rectify_all", "rectify_line", "reset", "arrow", "load"]);
+// Commands that leave the result as it is (no latency is taken for them).
+const KEEPS_RESULT = new Set(["save", "save_video", "cancel_video"]);
 
 // --- the state ------------------------------------------------------------------------------
 /**
@@ -172,6 +176,7 @@ function render({ model, el: host }) {
   const resize = new ResizeObserver(() => layout(ed));
   resize.observe(ed.ui.panesBox);
   for (const name of IMAGES) onImage(ed, name);
+  updateFrames(ed);
   layout(ed);
   showHandlesDocument(ed);
   onStatus(ed);
@@ -212,8 +217,29 @@ function buildUI(ed) {
   const cursorInfo = el("span", { class: "ow-cursor" });
   const helpBox = buildHelp();
   const liveCanvas = el("canvas", { class: "ow-live", hidden: "" }); // live.js draws the live result here
-  root.append(toolbar, panesBox, el("div", { class: "ow-status" }, message, cursorInfo), helpBox, liveCanvas);
-  return { root, toolbar, spinner, fileInput, panes, panesBox, message, cursorInfo, helpBox, liveCanvas };
+  const frames = buildFrames(ed);
+  root.append(toolbar, frames.box, panesBox, el("div", { class: "ow-status" }, message, cursorInfo), helpBox, liveCanvas);
+  return { root, toolbar, spinner, fileInput, panes, panesBox, message, cursorInfo, helpBox, liveCanvas, frames };
+}
+
+// A video's frame slider (hidden for an image): moving it names the frame, releasing it shows it.
+function buildFrames(ed) {
+  const slider = el("input", {
+    type: "range",
+    class: "ow-frame-slider",
+    min: "0",
+    max: "0",
+    step: "1",
+    value: "0",
+    title: "The frame of the video to draw on",
+    style: "flex: 1",
+  });
+  const label = el("span", { class: "ow-frame-label", style: "white-space: nowrap; font-variant-numeric: tabular-nums" });
+  slider.addEventListener("input", () => showFrameLabel(ed, Number(slider.value)));
+  slider.addEventListener("change", () => chooseFrame(ed, Number(slider.value)));
+  // laid out here (editor.css is the image editor's): a row above the panes, hidden for an image
+  const box = el("div", { class: "ow-frames", style: "display: flex; gap: 8px; align-items: center; margin-bottom: 4px" }, slider, label);
+  return { box, slider, label };
 }
 
 function buildToolbar(ed, fileInput, spinner) {
@@ -249,6 +275,10 @@ function buildToolbar(ed, fileInput, spinner) {
       button("download", "Download", "Download the handles file", () => download(ed)),
       button("load", "Load", "Load a handles file", () => fileInput.click()),
       button("full", "Full size", "Compute the result at the panorama's full size", () => command(ed, "full")),
+      button("save-video", "Save video", "Warp the whole video by these handles and write it next to it (clip.mp4: clip-rectified.mp4)", () =>
+        command(ed, "save_video"),
+      ),
+      button("cancel-video", "Cancel", "Stop saving the video (nothing is written)", () => command(ed, "cancel_video")),
       button(
         "save-image",
         "Save image",
@@ -318,7 +348,7 @@ function commit(ed, next) {
 
 function command(ed, op, content = {}) {
   const { state } = ed;
-  if (op !== "save") state.released = performance.now(); // every other command changes the result
+  if (!KEEPS_RESULT.has(op)) state.released = performance.now(); // every other command changes the result
   if (CHANGES_HANDLES.has(op)) {
     if (state.pendingCount === 0) state.pendingSince = performance.now();
     setPending(ed, state.pendingCount + 1);
@@ -419,6 +449,7 @@ function wireModel(ed) {
       draw(ed);
     }],
     ["change:history", () => updateStatus(ed)],
+    ...["frame", "frame_count", "frame_interval"].map((name) => [`change:${name}`, () => updateFrames(ed)]),
     ["change:stage", () => onStage(ed)],
     ["change:height", () => layout(ed)],
     ["msg:custom", (content, buffers) => onMessage(ed, content, buffers)],
@@ -755,6 +786,8 @@ function updateStatus(ed) {
   if (s.notice) parts.push(s.notice);
   if (state.latency !== null && s.state === "idle") parts.push(`shown ${state.latency.toFixed(0)} ms after the edit`);
   if (s.fold_area > 0) parts.push(`fold-over ${(100 * s.fold_area).toPrecision(2)}% of the sphere (magenta)`);
+  const video = videoStatusText(s.video);
+  if (video) parts.push(video);
   if (state.localNote) parts.push(state.localNote);
   const message = ui.message;
   message.textContent = parts.join(" · ");
@@ -765,6 +798,11 @@ function updateStatus(ed) {
   const history = model.get("history") || {};
   const h = items(ed)[selected(ed)];
   const action = (name) => ui.toolbar.querySelector(`[data-action="${name}"]`);
+  const isVideo = model.get("frame_count") > 0;
+  action("save-video").hidden = !isVideo;
+  action("save-video").disabled = videoRunning(s.video);
+  action("cancel-video").hidden = !videoRunning(s.video);
+  ui.root.dataset.video = (s.video && s.video.state) || "";
   action("undo").disabled = !history.undo;
   action("redo").disabled = !history.redo;
   action("rectify-line").disabled = !h || h.kind !== "line";
@@ -775,6 +813,29 @@ function updateStatus(ed) {
   action("handles").classList.toggle("ow-on", state.showHandles);
   for (const b of ui.toolbar.querySelectorAll("[data-tool]")) b.classList.toggle("ow-on", b.dataset.tool === state.tool);
   for (const b of ui.toolbar.querySelectorAll("[data-stage]")) b.classList.toggle("ow-on", b.dataset.stage === model.get("stage"));
+}
+
+// The frame slider as the kernel has it: shown for a video only, at the frame shown.
+function updateFrames(ed) {
+  const { model, ui } = ed;
+  const count = model.get("frame_count") || 0;
+  const { box, slider } = ui.frames;
+  box.style.display = count === 0 ? "none" : "flex";
+  slider.max = String(Math.max(count - 1, 0));
+  slider.value = String(model.get("frame") || 0);
+  ui.root.dataset.frame = String(model.get("frame") || 0);
+  showFrameLabel(ed, model.get("frame") || 0);
+  updateStatus(ed);
+}
+
+function showFrameLabel(ed, frame) {
+  const { model, ui } = ed;
+  ui.frames.label.textContent = frameLabel(frame, model.get("frame_count") || 0, model.get("frame_interval") || 0);
+}
+
+// The kernel reads the frame and recomputes the preview on it; the handles stay.
+function chooseFrame(ed, frame) {
+  if (frame !== ed.model.get("frame")) command(ed, "frame", { frame });
 }
 
 function setTool(ed, name) {
