@@ -466,9 +466,13 @@ def test_a_cancel_leaves_no_output(clips, tmp_path):
 
 
 def test_warp_video_from_handles_reports_what_it_did(clips, tmp_path):
+    import cv2
+
     from omniwidget.io.video import warp_video
 
+    threads = cv2.getNumThreads()
     report = warp_video(clips.v1, tmp_path / "out.mov", handles=ow.Handles.from_dict(HANDLES), width=256, order="bicubic", preset="veryfast")
+    assert cv2.getNumThreads() == threads  # OpenCV ran on one thread meanwhile, and is as it was
     assert (report.frames, report.size, report.codec, report.pix_fmt, report.planes) == (FRAMES, (256, 128), "libx264", "yuv420p", True)
     assert report.audio == ("aac",) and report.spherical is not None and report.fps > 0
     assert [t for t, _ in _decoded(tmp_path / "out.mov")] == [Fraction(i, RATE) for i in range(FRAMES)]

@@ -26,6 +26,7 @@ so a frame costs about 1.5 single-channel remaps. Other pixel formats are conver
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import secrets
@@ -679,7 +680,32 @@ class _Warper:
         return out
 
 
-_END = object()
+_opencv_lock = threading.Lock()
+_opencv_users = [0, 0]  # warps running, OpenCV's thread count before the first
+
+
+@contextlib.contextmanager
+def _opencv_single_threaded() -> Iterator[None]:
+    """OpenCV on one thread while videos are warped (restored when the last one ends).
+
+    The frames are resampled on the warp's own threads; OpenCV's pool on top of them
+    busy-waits between calls, and took about 8% of the CPU time of a 2048 x 1024 transcode
+    (``bench/bench_video.py``). The setting is OpenCV's, for the whole process.
+    """
+    import cv2
+
+    with _opencv_lock:
+        if _opencv_users[0] == 0:
+            _opencv_users[1] = cv2.getNumThreads()
+            cv2.setNumThreads(1)
+        _opencv_users[0] += 1
+    try:
+        yield
+    finally:
+        with _opencv_lock:
+            _opencv_users[0] -= 1
+            if _opencv_users[0] == 0:
+                cv2.setNumThreads(_opencv_users[1])
 
 
 def _put(q: queue.Queue[Any], item: Any, stop: threading.Event) -> bool:
@@ -787,7 +813,9 @@ def warp_video(
         True: the input's, or plain equirectangular if it has none; False: none; or the
         given :class:`~omniwidget.io.spherical.Spherical`.
     workers : int, optional
-        Threads resampling frames (default 2); decoding and encoding have their own.
+        Threads resampling frames (default 2); decoding and encoding have their own. While
+        a video is warped OpenCV runs on one thread (its setting, for the whole process):
+        its own thread pool on top of these cost 8% more CPU time.
     progress : callable, optional
         ``progress(done, total)`` after each frame is encoded, on the calling thread;
         ``total`` is the expected frame count or None. Returning False cancels.
@@ -883,6 +911,8 @@ def warp_video(
     expected = info.frames or (round(info.duration * float(info.rate)) if info.duration and info.rate else None)
 
     tmp = _temporary_file(destination)
+    opencv = _opencv_single_threaded()
+    opencv.__enter__()
     stop = threading.Event()
     items: queue.Queue[Any] = queue.Queue(maxsize=8)
     pool = ThreadPoolExecutor(max(1, workers or 2), thread_name_prefix="omniwidget-warp")
@@ -999,6 +1029,7 @@ def warp_video(
                 except queue.Empty:
                     decoder.join(0.05)
         pool.shutdown(wait=True, cancel_futures=True)
+        opencv.__exit__(None, None, None)  # no resampling left
         if output is not None and not finished:
             try:
                 output.close()
