@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_write_bytes"]
+__all__ = ["atomic_write_bytes", "remove_leftovers"]
+
+#: The temporary files are ``.NAME.XXXXXXXX.tmp`` beside ``NAME`` (:func:`tempfile.mkstemp`'s eight characters).
+_SUFFIX = ".tmp"
 
 # The process's umask, read once at import (reading it means setting it, which is not thread-safe later).
 _UMASK = os.umask(0o022)
@@ -26,7 +30,7 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         mode = path.stat().st_mode & 0o7777
     except FileNotFoundError:
         mode = 0o666 & ~_UMASK
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=_SUFFIX, dir=path.parent or ".")
     try:
         os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as fh:
@@ -35,3 +39,20 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def remove_leftovers(path: Path) -> None:
+    """Remove the temporary files an :func:`atomic_write_bytes` of ``path`` killed mid-write left, never another file.
+
+    For a write that may be retried after its process died (a Dask worker killed, say):
+    ``atomic_write_bytes`` cleans up after itself whenever it can, but not after a kill.
+    """
+    path = Path(path)
+    pattern = re.compile(re.escape(f".{path.name}.") + r"[a-z0-9_]{8}" + re.escape(_SUFFIX))
+    try:
+        names = os.listdir(path.parent)
+    except OSError:
+        return
+    for name in names:
+        if pattern.fullmatch(name):
+            (path.parent / name).unlink(missing_ok=True)

@@ -163,12 +163,12 @@ def test_a_batch_refuses_what_would_lose_work_before_starting(files, tmp_path):
 
 
 def test_the_temporaries_of_a_killed_attempt_are_removed_and_no_other_file(tmp_path):
-    from omniwidget.app.batch import _remove_temporaries
+    from omniwidget._files import remove_leftovers
 
     names = [".a.jpg.ab12_x9z.tmp", ".a.jpg.png.ab12_x9z.tmp", ".b.jpg.ab12_x9z.tmp", "a.jpg", ".a.jpg.tmp", ".a.jpg.abcdefgh.tmp"]
     for n in names:
         (tmp_path / n).write_bytes(b"x")
-    _remove_temporaries(tmp_path / "a.jpg")
+    remove_leftovers(tmp_path / "a.jpg")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(set(names) - {".a.jpg.ab12_x9z.tmp", ".a.jpg.abcdefgh.tmp"})
 
 

@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import re
 import threading
 import time
 import uuid
@@ -63,6 +62,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._files import remove_leftovers
 from ..document.handles import Handles, load_handles
 from ..errors import ImageError, OmniwidgetError
 
@@ -307,23 +307,6 @@ def _coordinates(recipe: _Recipe, src_width: int) -> tuple[NDArray[np.float32], 
     return coordinates, warnings, (time.perf_counter() - start) if made else 0.0
 
 
-#: The temporary files of :func:`omniwidget._files.atomic_write_bytes`: ``.NAME.XXXXXXXX.tmp``
-#: (:func:`tempfile.mkstemp`'s eight random characters).
-_TEMPORARY = r"\.{name}\.[a-z0-9_]{{8}}\.tmp"
-
-
-def _remove_temporaries(dst: Path) -> None:
-    """Remove what an earlier attempt killed mid-write left of ``dst``: its temporary files, never another file's."""
-    pattern = re.compile(_TEMPORARY.format(name=re.escape(dst.name)))
-    try:
-        names = os.listdir(dst.parent)
-    except OSError:
-        return
-    for name in names:
-        if pattern.fullmatch(name):
-            (dst.parent / name).unlink(missing_ok=True)
-
-
 def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[float, float, tuple[str, ...]]:
     """Read ``src``, warp it, write ``dst`` whole; ``(seconds, map seconds, warnings)``. Raises on any failure."""
     from ..io.images import read_panorama, write_image
@@ -336,7 +319,7 @@ def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[
     out = remap(pad_panorama(frame), coordinates, recipe.order)
     if make_folder:
         target.parent.mkdir(exist_ok=True)
-    _remove_temporaries(target)
+    remove_leftovers(target)
     write_image(target, out)
     return time.perf_counter() - start, map_seconds, warnings
 
