@@ -41,14 +41,16 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         raise
 
 
-def remove_leftovers(path: Path) -> None:
+def remove_leftovers(path: Path, suffix: str = _SUFFIX) -> None:
     """Remove the temporary files an :func:`atomic_write_bytes` of ``path`` killed mid-write left, never another file.
 
     For a write that may be retried after its process died (a Dask worker killed, say):
     ``atomic_write_bytes`` cleans up after itself whenever it can, but not after a kill.
+    ``suffix`` names the other writers' temporary files made the same way
+    (``.NAME.XXXXXXXX`` and the suffix; a video's are ``.part``).
     """
     path = Path(path)
-    pattern = re.compile(re.escape(f".{path.name}.") + r"[a-z0-9_]{8}" + re.escape(_SUFFIX))
+    pattern = re.compile(re.escape(f".{path.name}.") + r"[a-z0-9_]{8}" + re.escape(suffix))
     try:
         names = os.listdir(path.parent)
     except OSError:

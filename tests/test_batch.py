@@ -350,3 +350,127 @@ def test_workers_with_other_versions_are_warned_about(client, files, tmp_path):
         client.run(_undo_pretending)
     assert report.ok
     assert len(report.warnings) == 2 and all("runs omniwidget 0.0.1 (here " in w for w in report.warnings), report.warnings
+
+
+# --- videos: time ranges as tasks, joined without re-encoding -----------------------------------
+
+
+@pytest.fixture(scope="module")
+def clip(files) -> Path:
+    """A 24-frame 512 x 256 clip with a tone and V1 spherical metadata (test_video's), and its ranges warped whole in-process."""
+    if os.environ.get(STRICT_ENV_VAR) != "1":  # in CI a missing PyAV is a broken install
+        pytest.importorskip("av")
+    from tests.test_video import _add_v1_metadata, _encode, _frames
+
+    path = files / "clip.mp4"
+    _encode(path, _frames(24))
+    _add_v1_metadata(path)
+    return path
+
+
+def _video_batch(clip: Path, files: Path, out: Path, **kwargs) -> BatchReport:
+    """The clip in three time ranges, with two images, by the demo's handles."""
+    return warp_files([clip, files / "a.jpg", files / "d.jpg"], out, handles=files / "h.json", segment_seconds=0.35, **kwargs)
+
+
+@pytest.fixture(scope="module")
+def local_video(clip, files, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("video") / "here"
+    report = _video_batch(clip, files, out)
+    assert report.ok, report.summary()
+    assert [f.segments for f in report.files] == [3, 1, 1]
+    return out
+
+
+def test_in_process_a_video_is_warped_in_ranges_and_joined_whole(clip, files, local, local_video):
+    from tests.test_video import _audio_packets, _decoded, _psnr, _spherical_side_data
+
+    written = _written(local_video)
+    assert sorted(written) == ["a.jpg", "clip.mp4", "d.jpg"]  # no range or temporary file left
+    assert {n: written[n] for n in ("a.jpg", "d.jpg")} == _expected(local, ("a.jpg", "d.jpg"))
+    before, after = _decoded(clip), _decoded(local_video / "clip.mp4")
+    assert [t for t, _ in after] == [t for t, _ in before] and len(after) == 24
+    assert _audio_packets(local_video / "clip.mp4") == _audio_packets(clip)
+    (kept,) = _spherical_side_data(local_video / "clip.mp4")
+    assert kept["projection"] == "equirectangular"
+    # each frame is the warp of its input frame, as the one-machine video warp makes it
+    handles = json.loads((files / "h.json").read_text())
+    import omniwidget as ow
+
+    doc = ow.Handles.from_dict(handles)
+    first = ow.warp(before[0][1], doc, warn=False)
+    figures = [_psnr(ow.warp(src, doc, warn=False, previous=first).image, out, 255.0) for (_, src), (_, out) in zip(before, after, strict=True)]
+    assert min(figures) >= 37.0, figures
+
+
+def test_the_cluster_writes_the_video_bytes_of_the_local_run(client, clip, files, local_video, tmp_path):
+    report = _video_batch(clip, files, tmp_path / "dask", client=client)
+    assert report.ok, report.summary()
+    assert _written(tmp_path / "dask") == _written(local_video)
+    video = report.files[0]
+    assert video.segments == 3 and video.task is not None and video.task.endswith("-0")  # the join's key
+    # the plan, three ranges and the join ran as tasks; every range on some worker
+    stories = {event[1] for event in client.story(*(f"{video.task}-{k}" for k in range(3))) if len(event) > 1}
+    assert {f"{video.task}-{k}" for k in range(3)} <= stories
+
+
+def _arm_kill_in_a_range(marker: str, after: int) -> None:
+    """On a worker: the first range of the cluster to warp its ``after``-th frame kills its process there, mid-encode."""
+    import omniwidget.io.video as video
+
+    original = getattr(video._Warper.__call__, "original", video._Warper.__call__)
+    seen = [0]
+
+    def dying(self, frame):
+        seen[0] += 1
+        if seen[0] == after:
+            try:
+                os.close(os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY))  # one kill in all the cluster
+            except FileExistsError:
+                pass
+            else:
+                os._exit(1)
+        return original(self, frame)
+
+    dying.original = original
+    video._Warper.__call__ = dying
+
+
+def _disarm_range_kill() -> None:
+    import omniwidget.io.video as video
+
+    video._Warper.__call__ = getattr(video._Warper.__call__, "original", video._Warper.__call__)
+
+
+def test_a_worker_killed_mid_range_loses_and_duplicates_nothing(client, clip, files, local_video, tmp_path):
+    marker = tmp_path / "killed"
+    client.run(_arm_kill_in_a_range, str(marker), 4)
+    try:
+        report = _video_batch(clip, files, tmp_path / "out", client=client, retries=0)
+    finally:
+        client.run(_disarm_range_kill)
+    assert marker.exists()  # a worker did die, four frames into a range
+    assert report.ok, report.summary()
+    assert _written(tmp_path / "out") == _written(local_video)  # the same bytes, no half-written range left
+    client.wait_for_workers(2)
+
+
+def test_a_broken_video_is_reported_and_the_other_files_written(client, clip, files, local, tmp_path):
+    data = clip.read_bytes()
+    cut = tmp_path / "cut.mp4"
+    cut.write_bytes(data[: len(data) * 2 // 3])  # the index at the end is gone
+    for run in ({}, {"client": client}):
+        out = tmp_path / ("dask" if run else "here")
+        report = warp_files([cut, files / "a.jpg"], out, handles=files / "h.json", segment_seconds=0.35, retries=1, **run)
+        ((bad, why),) = report.failed
+        assert bad == cut and "cut.mp4" in why, why
+        assert _written(out) == _expected(local, ("a.jpg",))
+
+
+def test_the_command_line_sends_a_videos_ranges_to_the_cluster(client, clip, files, local_video, tmp_path, capsys):
+    out = tmp_path / "clip.mp4"
+    code = _run_cli("warp", clip, "-H", files / "h.json", "-o", out, "--dask", client.scheduler.address, "--segment-seconds", "0.35")
+    assert code == 0, capsys.readouterr().err
+    assert out.read_bytes() == (local_video / "clip.mp4").read_bytes()
+    assert _run_cli("warp", files / "a.jpg", "-H", files / "h.json", "-o", tmp_path / "x.png", "--segment-seconds", "1") == 2
+    assert "--segment-seconds cuts videos for a Dask cluster" in capsys.readouterr().err

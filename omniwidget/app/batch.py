@@ -65,6 +65,8 @@ from numpy.typing import ArrayLike, NDArray
 from .._files import remove_leftovers
 from ..document.handles import Handles, load_handles
 from ..errors import ImageError, OmniwidgetError
+from ..io.video import OUTPUT_SUFFIXES as VIDEO_OUTPUT_SUFFIXES
+from ..io.video import is_video_path
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -83,6 +85,9 @@ CACHE_ENTRIES = 4
 
 #: Where the task keys of a batch start: the name of its task group on the Dask dashboard.
 TASK_PREFIX = "omniwidget-warp"
+
+#: How long, in seconds, the time ranges a video is cut into are by default (one task each).
+SEGMENT_SECONDS = 60.0
 
 
 @dataclass(frozen=True)
@@ -105,6 +110,10 @@ class FileReport:
     map_seconds : float
         The part of ``seconds`` spent computing a map or source coordinates (0 when the
         worker had them already).
+    segments : int
+        The time ranges a video was cut into, each a task (their seconds added up in
+        ``seconds``; ``worker`` and ``task`` are those of the task that joined them); 1
+        for an image.
     """
 
     input: Path
@@ -114,6 +123,7 @@ class FileReport:
     worker: str | None = None
     task: str | None = None
     map_seconds: float = 0.0
+    segments: int = 1
 
     @property
     def ok(self) -> bool:
@@ -181,6 +191,17 @@ class BatchReport:
 
 
 @dataclass(frozen=True)
+class VideoSettings:
+    """How the videos of a batch are cut and encoded (:func:`~omniwidget.io.video.warp_video`'s options)."""
+
+    segment_seconds: float = SEGMENT_SECONDS
+    codec: str | None = None
+    crf: int | None = None
+    preset: str | None = None
+    spherical: bool | None = None
+
+
+@dataclass(frozen=True)
 class _Recipe:
     """What every task needs besides its two paths; sent once to each worker."""
 
@@ -190,12 +211,20 @@ class _Recipe:
     order: Order
     fit: Fit | None
     digest: str  # names the handles or the map in the workers' caches
+    video: VideoSettings
 
 
-def _recipe(handles: Any, inverse_map: Any, width: int | None, order: Order, fit: Fit | None) -> _Recipe:
+def _recipe(
+    handles: Any, inverse_map: Any, width: int | None, order: Order, fit: Fit | None, video: VideoSettings | None = None
+) -> _Recipe:
     from ..io.frames import load_map, map_coordinates
     from ..io.images import FITS
     from ..raster.warping import ORDERS
+
+    video = video or VideoSettings()
+    seconds = video.segment_seconds
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not 0 < seconds < float("inf"):
+        raise ValueError(f"segment_seconds must be a positive number of seconds, got {seconds!r}")
 
     if (handles is None) == (inverse_map is None):
         raise ValueError("give either handles= (a Handles document or a handles file) or map= (an inverse map or a .npy file)")
@@ -209,7 +238,7 @@ def _recipe(handles: Any, inverse_map: Any, width: int | None, order: Order, fit
     if handles is not None:
         doc = handles if isinstance(handles, Handles) else load_handles(handles)
         digest = hashlib.sha256(doc.to_json(indent=None).encode()).hexdigest()
-        return _Recipe(doc, None, width, order, fit, f"handles-{digest}")
+        return _Recipe(doc, None, width, order, fit, f"handles-{digest}", video)
     if isinstance(inverse_map, (str, os.PathLike)):
         m: NDArray[np.floating] = load_map(inverse_map)
     else:
@@ -218,7 +247,7 @@ def _recipe(handles: Any, inverse_map: Any, width: int | None, order: Order, fit
     if width is not None and width != m.shape[1]:
         raise ValueError(f"width={width}: the map makes outputs {m.shape[1]} wide")
     digest = hashlib.sha256(m.tobytes()).hexdigest()
-    return _Recipe(None, m, width, order, fit, f"map-{m.dtype.str}-{m.shape[0]}-{digest}")
+    return _Recipe(None, m, width, order, fit, f"map-{m.dtype.str}-{m.shape[0]}-{digest}", video)
 
 
 # --- on each worker (or in-process): the maps kept per size, one file's work -----------------
@@ -281,26 +310,33 @@ def _make_inverse_map(handles: Handles, width: int, order: Order) -> tuple[NDArr
     return result.inverse_map(), tuple(result.warnings)
 
 
+def _output_width(recipe: _Recipe, src_width: int) -> int:
+    return recipe.inverse_map.shape[1] if recipe.inverse_map is not None else (recipe.width or src_width)
+
+
+def _inverse_map(recipe: _Recipe, out_width: int, keep: bool) -> tuple[NDArray[np.floating], tuple[str, ...]]:
+    """The recipe's inverse map at ``out_width`` and the warp's warnings; kept in this process when ``keep``."""
+    if recipe.inverse_map is not None:
+        return recipe.inverse_map, ()
+    if recipe.handles is None:
+        raise ValueError("a recipe has handles or a map")
+    make = partial(_make_inverse_map, recipe.handles, out_width, recipe.order)
+    if not keep:
+        return make()
+    value: tuple[NDArray[np.floating], tuple[str, ...]] = _cached(("inverse", recipe.digest, out_width), make)[0]
+    return value
+
+
 def _coordinates(recipe: _Recipe, src_width: int) -> tuple[NDArray[np.float32], tuple[str, ...], float]:
     """Source coordinates for inputs ``src_width`` wide, the warp's warnings, and the seconds this call spent making them."""
     from ..io.frames import map_coordinates
 
     start = time.perf_counter()
-    doc, saved = recipe.handles, recipe.inverse_map
-    out_width = saved.shape[1] if saved is not None else (recipe.width or src_width)
-
-    def inverse() -> tuple[NDArray[np.floating], tuple[str, ...]]:
-        if saved is not None:
-            return saved, ()
-        assert doc is not None
-        make = partial(_make_inverse_map, doc, out_width, recipe.order)
-        if recipe.width is None:  # the output is the input's size: this map serves these coordinates only
-            return make()
-        value: tuple[NDArray[np.floating], tuple[str, ...]] = _cached(("inverse", recipe.digest, out_width), make)[0]
-        return value  # one output width for inputs of every size: kept
+    out_width = _output_width(recipe, src_width)
 
     def make() -> tuple[NDArray[np.float32], tuple[str, ...]]:
-        inverse_map, warnings = inverse()
+        # a map of a fixed output width serves inputs of every size: kept; one of the input's size serves these coordinates only
+        inverse_map, warnings = _inverse_map(recipe, out_width, keep=recipe.width is not None)
         return map_coordinates(inverse_map, src_width), warnings
 
     (coordinates, warnings), made = _cached(("coordinates", recipe.digest, out_width, src_width), make)
@@ -324,11 +360,74 @@ def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[
     return time.perf_counter() - start, map_seconds, warnings
 
 
-def _dask_task(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[float, float, tuple[str, ...], str]:
-    """:func:`_warp_file` on a Dask worker; also says which worker."""
+# --- videos: cut into time ranges, each warped by a task, then joined without re-encoding ---------
+
+
+def _plan_video(src: str, segment_seconds: float) -> tuple[tuple[float | None, float | None], ...]:
+    """The time ranges ``(start, end)`` a video is cut into, seconds on its timeline (None: open): equal, about ``segment_seconds`` long."""
+    from ..errors import VideoError
+    from ..io.video import probe_video
+
+    info = probe_video(src)
+    problem = info.panorama_problem()
+    if problem is not None:
+        raise VideoError(f"{src}: {problem}")
+    count = max(1, round(info.duration / segment_seconds)) if info.duration else 1
+    cuts: list[float | None] = [info.start + k * info.duration / count for k in range(1, count)] if info.duration else []
+    return tuple(zip([None, *cuts], [*cuts, None], strict=True))
+
+
+def _segment_paths(dst: Path, count: int) -> list[Path]:
+    """Where a video's ranges are written before they are joined: hidden files beside the output."""
+    return [dst.parent / f".{dst.name}.{k + 1:03d}of{count:03d}{dst.suffix}" for k in range(count)]
+
+
+def _warp_segment(
+    recipe: _Recipe, src: str, seg: str, start: float | None, end: float | None, make_folder: bool
+) -> tuple[float, float, tuple[str, ...]]:
+    """Warp one time range of a video into ``seg`` (video only, from a key frame); ``(seconds, map seconds, warnings)``."""
+    from ..io.video import TEMPORARY_SUFFIX, probe_video, warp_video
+
+    tick = time.perf_counter()
+    target = Path(seg)
+    if make_folder:
+        target.parent.mkdir(exist_ok=True)
+    remove_leftovers(target, TEMPORARY_SUFFIX)
+    out_width = _output_width(recipe, probe_video(src).width)
+    before = time.perf_counter()
+    inverse_map, warnings = _inverse_map(recipe, out_width, keep=True)
+    map_seconds = time.perf_counter() - before
+    v = recipe.video
+    warp_video(
+        src, target, inverse_map, order=recipe.order, codec=v.codec, crf=v.crf, preset=v.preset, spherical=False, start=start, end=end, audio=False
+    )
+    return time.perf_counter() - tick, map_seconds, warnings
+
+
+def _join_segments(recipe: _Recipe, src: str, segs: Sequence[str], dst: str, done: Sequence[tuple[Any, ...]]) -> tuple[float, float, tuple[str, ...]]:
+    """Join a video's warped ranges into ``dst`` with the source's sound; the ranges' ``(seconds, map seconds, warnings)`` summed."""
+    from ..io.video import TEMPORARY_SUFFIX, join_video_segments
+
+    remove_leftovers(Path(dst), TEMPORARY_SUFFIX)
+    report = join_video_segments(segs, dst, source=src, spherical=recipe.video.spherical)
+    warnings = tuple(dict.fromkeys(w for d in done for w in d[2]))
+    return report.seconds + sum(d[0] for d in done), sum(d[1] for d in done), warnings
+
+
+def _remove_segments(segs: Sequence[str]) -> None:
+    """Remove a video's warped ranges and what killed attempts at them left."""
+    from ..io.video import TEMPORARY_SUFFIX
+
+    for seg in segs:
+        Path(seg).unlink(missing_ok=True)
+        remove_leftovers(Path(seg), TEMPORARY_SUFFIX)
+
+
+def _dask_task(work: Callable[..., tuple[Any, ...]], *args: Any) -> tuple[Any, ...]:
+    """``work(*args)`` on a Dask worker; its result, and which worker ran it."""
     from distributed import get_worker
 
-    return (*_warp_file(recipe, src, dst, make_folder), get_worker().address)
+    return (*work(*args), get_worker().address)
 
 
 def _describe(exc: BaseException, src: Path) -> str:
@@ -352,7 +451,7 @@ def _pairs(inputs: Sequence[str | os.PathLike[str]], outputs: Any) -> tuple[list
     sources = [Path(p) for p in inputs]
     if isinstance(outputs, (str, os.PathLike)):
         folder = Path(outputs)
-        if folder.suffix.lower() in OUTPUT_SUFFIXES:
+        if folder.suffix.lower() in OUTPUT_SUFFIXES + VIDEO_OUTPUT_SUFFIXES:
             raise ImageError(f"{folder}: outputs= names a folder for the outputs (each keeps its input's name), or give a list of outputs")
         names = [p.name for p in sources]
         twice = sorted({n for n in names if names.count(n) > 1})
@@ -369,9 +468,12 @@ def _pairs(inputs: Sequence[str | os.PathLike[str]], outputs: Any) -> tuple[list
             if key in seen:
                 raise ImageError(f"{t}: named as the output of two inputs")
             seen.add(key)
-    unwritable = next((t for t in targets if t.suffix.lower() not in OUTPUT_SUFFIXES), None)
-    if unwritable is not None:
-        raise ImageError(f"{unwritable}: an output must end in {', '.join(OUTPUT_SUFFIXES)}")
+    for s, t in zip(sources, targets, strict=True):
+        video = is_video_path(s)
+        allowed = VIDEO_OUTPUT_SUFFIXES if video else OUTPUT_SUFFIXES
+        if t.suffix.lower() not in allowed:
+            what = "the output of a video" if video else "an output"
+            raise ImageError(f"{t}: {what} must end in {', '.join(allowed)}")
     read = {os.path.normpath(os.path.abspath(s)) for s in sources}
     clash = next((t for t in targets if os.path.normpath(os.path.abspath(t)) in read), None)
     if clash is not None:
@@ -392,18 +494,28 @@ def warp_files(
     fit: Fit | None = None,
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    segment_seconds: float = SEGMENT_SECONDS,
+    codec: str | None = None,
+    crf: int | None = None,
+    preset: str | None = None,
+    spherical: bool | None = None,
 ) -> BatchReport:
-    """Warp many panoramas alike, each read and written by a task of its own, here or on a Dask cluster.
+    """Warp many panoramas and 360° videos alike, each read and written by tasks of their own, here or on a Dask cluster.
 
     Parameters
     ----------
     inputs : sequence of path-like
         Equirectangular images (2:1, or any shape with ``fit``), of any sizes: each size
-        gets its own map. With a cluster, paths as the workers see them.
+        gets its own map; and 360° videos (:func:`~omniwidget.io.video.is_video_path`),
+        each cut into time ranges of about ``segment_seconds``, one task per range, then
+        joined without re-encoding, its sound copied from the input
+        (:func:`~omniwidget.io.video.join_video_segments`). With a cluster, paths as the
+        workers see them.
     outputs : path-like or sequence of path-like
         A folder (made if missing, not its parents) where each output keeps its input's
         file name, or one output path per input. The suffix picks the format
-        (:func:`~omniwidget.io.images.write_image`). Each is written whole or not at all.
+        (:func:`~omniwidget.io.images.write_image`; ``.mp4``, ``.m4v`` or ``.mov`` for a
+        video). Each is written whole or not at all.
     handles : Handles or path-like, optional
         The handles document (or its file) to warp by; the map is computed once per output
         width on each worker (or once in-process).
@@ -428,6 +540,14 @@ def warp_files(
         Threads for an in-process run (default: CPUs + 1); a cluster has its own workers.
     progress : callable, optional
         ``progress(done, total)``, called in the calling thread as each file finishes.
+    segment_seconds : float
+        About how long each time range of a video is (the ranges of one video are equal).
+        Each range starts with a key frame, so a shorter range costs a little more bit rate.
+    codec, crf, preset : optional
+        The videos' encoder settings (:func:`~omniwidget.io.video.warp_video`).
+    spherical : bool, optional
+        The videos' spherical metadata: the input's (None), the input's or plain
+        equirectangular (True), none (False).
 
     Returns
     -------
@@ -455,7 +575,10 @@ def warp_files(
     the inverse map of the output size, turned into source coordinates for the input's width
     (:func:`~omniwidget.io.frames.map_coordinates`) and resampled with OpenCV. (For one
     input, ``omniwidget warp`` without ``--dask`` resamples by the blend's own coordinates,
-    which differ from the map's in the last bits, so the bytes may differ slightly.)
+    which differ from the map's in the last bits, so the bytes may differ slightly.) A
+    video's output is the same bytes in-process and on a cluster (the same ranges, each
+    encoded alike); it differs from ``omniwidget warp IN.mp4`` in one thing: a key frame
+    starts each range.
 
     Examples
     --------
@@ -467,7 +590,7 @@ def warp_files(
         raise ValueError(f"retries must be a non-negative integer, got {retries!r}")
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers!r}")
-    recipe = _recipe(handles, map, width, order, fit)
+    recipe = _recipe(handles, map, width, order, fit, VideoSettings(segment_seconds, codec, crf, preset, spherical))
     pairs, make_folder = _pairs(inputs, outputs)
     start = time.perf_counter()
     if client is None:
@@ -489,19 +612,37 @@ def _in_process(
     threads: int,
     progress: Callable[[int, int], None] | None,
 ) -> tuple[list[FileReport], tuple[str, ...]]:
+    def attempt(work: Callable[..., Any], *args: Any) -> Any:
+        """``work(*args)``, tried ``retries`` more times if it raises, like a task on a cluster; the last error raised."""
+        for left in range(retries, -1, -1):
+            try:
+                return work(*args)
+            except Exception:
+                if not left:
+                    raise
+        raise AssertionError("unreachable")
+
+    def video(src: Path, dst: Path) -> FileReport:
+        ranges = attempt(_plan_video, str(src), recipe.video.segment_seconds)
+        segs = [str(p) for p in _segment_paths(dst, len(ranges))]
+        try:
+            done = [attempt(_warp_segment, recipe, str(src), seg, a, b, make_folder) for seg, (a, b) in zip(segs, ranges, strict=True)]
+            seconds, map_seconds, warnings = attempt(_join_segments, recipe, str(src), segs, str(dst), done)
+        finally:
+            _remove_segments(segs)
+        found.update(dict.fromkeys(warnings))
+        return FileReport(src, dst, seconds, None, "local", None, map_seconds, len(segs))
+
     def one(pair: tuple[Path, Path]) -> FileReport:
         src, dst = pair
-        error: BaseException | None = None
-        for _ in range(retries + 1):
-            try:
-                seconds, map_seconds, warnings = _warp_file(recipe, str(src), str(dst), make_folder)
-            except Exception as exc:  # reported, like a task's failure on a cluster
-                error = exc
-                continue
-            found.update(dict.fromkeys(warnings))
-            return FileReport(src, dst, seconds, None, "local", None, map_seconds)
-        assert error is not None
-        return FileReport(src, dst, error=_describe(error, src))
+        try:
+            if is_video_path(src):
+                return video(src, dst)
+            seconds, map_seconds, warnings = attempt(_warp_file, recipe, str(src), str(dst), make_folder)
+        except Exception as exc:  # reported, like a task's failure on a cluster
+            return FileReport(src, dst, error=_describe(exc, src))
+        found.update(dict.fromkeys(warnings))
+        return FileReport(src, dst, seconds, None, "local", None, map_seconds)
 
     found: dict[str, None] = {}
     files: list[FileReport] = []
@@ -537,44 +678,65 @@ def _on_cluster(
     client: Any,
     progress: Callable[[int, int], None] | None,
 ) -> tuple[list[FileReport], tuple[str, ...], str, int]:
-    from distributed import as_completed
+    from distributed import as_completed, wait
 
     dask, ours = _connect(client)
     futures: list[Any] = []
+    cleanups: list[Any] = []
     try:
         address = str(dask.scheduler.address) if dask.scheduler is not None else str(client)
         count = len(dask.scheduler_info().get("workers", {}))
-        # the recipe once per worker (workers that join later fetch it from a peer), then one task per file
+        # the recipe once per worker (workers that join later fetch it from a peer), then the tasks
         shared = dask.scatter(recipe, broadcast=True, hash=True)
-        batch = uuid.uuid4().hex[:12]
-        keys = [f"{TASK_PREFIX}-{batch}-{i}" for i in range(len(pairs))]
-        futures = dask.map(
-            _dask_task,
-            [shared] * len(pairs),
-            [str(s) for s, _ in pairs],
-            [str(d) for _, d in pairs],
-            [make_folder] * len(pairs),
-            key=keys,
-            retries=retries,
-            pure=False,
-        )
-        index = {k: i for i, k in enumerate(keys)}
+        prefix = f"{TASK_PREFIX}-{uuid.uuid4().hex[:12]}"
+        # an image is one task (key prefix-i); a video first a plan (prefix-i-plan), then a task
+        # per range (prefix-i-k) and the join (prefix-i), which waits for the ranges
+        stage: dict[str, tuple[int, str]] = {}
+        segments: dict[int, list[str]] = {}
+
+        def submit(key: str, i: int, what: str, work: Callable[..., Any], *args: Any) -> Any:
+            future = dask.submit(_dask_task, work, *args, key=key, retries=retries, pure=False)
+            futures.append(future)
+            stage[key] = (i, what)
+            return future
+
+        pending = as_completed()
+        for i, (src, dst) in enumerate(pairs):
+            if is_video_path(src):
+                pending.add(submit(f"{prefix}-{i}-plan", i, "plan", _plan_video, str(src), recipe.video.segment_seconds))
+            else:
+                pending.add(submit(f"{prefix}-{i}", i, "file", _warp_file, shared, str(src), str(dst), make_folder))
         files: list[FileReport | None] = [None] * len(pairs)
         found = dict.fromkeys(_mismatches(dask))
-        for done, future in enumerate(as_completed(futures), start=1):
-            i = index[future.key]
+        done = 0
+        for future in pending:
+            i, what = stage[future.key]
             src, dst = pairs[i]
             try:
-                seconds, map_seconds, warnings, worker = future.result()
+                *value, worker = future.result()
             except BaseException as exc:  # the task's own exception, or Dask's (KilledWorker, cancelled)
                 if isinstance(exc, (KeyboardInterrupt, SystemExit)):
                     raise
-                files[i] = FileReport(src, dst, error=_describe(exc, src), task=keys[i])
+                files[i] = FileReport(src, dst, error=_describe(exc, src), task=future.key, segments=len(segments.get(i, [])) or 1)
             else:
+                if what == "plan":
+                    ranges = value  # the plan's ranges, unpacked with the worker's address
+                    segs = segments[i] = [str(p) for p in _segment_paths(dst, len(ranges))]
+                    parts = [
+                        submit(f"{prefix}-{i}-{k}", i, "range", _warp_segment, shared, str(src), seg, a, b, make_folder)
+                        for k, (seg, (a, b)) in enumerate(zip(segs, ranges, strict=True))
+                    ]
+                    pending.add(submit(f"{prefix}-{i}", i, "join", _join_segments, shared, str(src), segs, str(dst), parts))
+                    continue
+                seconds, map_seconds, warnings = value
                 found.update(dict.fromkeys(warnings))
-                files[i] = FileReport(src, dst, seconds, None, worker, keys[i], map_seconds)
+                files[i] = FileReport(src, dst, seconds, None, worker, future.key, map_seconds, len(segments.get(i, [])) or 1)
+            if i in segments:  # the ranges joined (or given up on): remove them
+                cleanups.append(dask.submit(_remove_segments, segments[i], key=f"{prefix}-{i}-cleanup", retries=retries, pure=False))
+            done += 1
             if progress is not None:
                 progress(done, len(pairs))
+        wait(cleanups)
         return [f for f in files if f is not None], tuple(found), address, count
     finally:
         unfinished = [f for f in futures if not f.done()]

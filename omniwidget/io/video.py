@@ -32,7 +32,7 @@ import queue
 import secrets
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from fractions import Fraction
@@ -56,6 +56,7 @@ if TYPE_CHECKING:
 __all__ = [
     "INPUT_SUFFIXES",
     "OUTPUT_SUFFIXES",
+    "TEMPORARY_SUFFIX",
     "VideoCancelled",
     "VideoInfo",
     "VideoReader",
@@ -63,6 +64,7 @@ __all__ = [
     "default_codec",
     "half_resolution_map",
     "is_video_path",
+    "join_video_segments",
     "probe_video",
     "warp_video",
 ]
@@ -71,6 +73,9 @@ __all__ = [
 INPUT_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv", ".webm", ".avi", ".mts", ".m2ts", ".ts")
 #: Containers written: MP4 and QuickTime (the spherical metadata's boxes are theirs).
 OUTPUT_SUFFIXES = (".mp4", ".m4v", ".mov")
+#: The end of the temporary file's name a video is written to before it is renamed
+#: (``.NAME.XXXXXXXX.part``, removed by ``omniwidget._files.remove_leftovers(NAME, TEMPORARY_SUFFIX)``).
+TEMPORARY_SUFFIX = ".part"
 #: Pixel formats resampled plane by plane, and the format they are written in.
 PLANE_FORMATS = {"yuv420p": "yuv420p", "yuvj420p": "yuv420p", "yuv420p10le": "yuv420p10le"}
 #: x264's and x265's presets, slowest last.
@@ -740,7 +745,7 @@ def _temporary_file(destination: Path) -> Path:
     have them after the rename (``tempfile.mkstemp`` would make it private).
     """
     for _ in range(100):
-        path = destination.parent / f".{destination.name}.{secrets.token_hex(4)}.part"
+        path = destination.parent / f".{destination.name}.{secrets.token_hex(4)}{TEMPORARY_SUFFIX}"
         try:
             os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
         except FileExistsError:
@@ -781,6 +786,9 @@ def warp_video(
     workers: int | None = None,
     progress: Progress | None = None,
     cancel: threading.Event | None = None,
+    start: float | None = None,
+    end: float | None = None,
+    audio: bool = True,
 ) -> VideoReport:
     """Warp every frame of a 360° video by one map and write a new video, its sound and metadata kept.
 
@@ -821,6 +829,15 @@ def warp_video(
         ``total`` is the expected frame count or None. Returning False cancels.
     cancel : threading.Event, optional
         Set from another thread to cancel (checked after each frame).
+    start, end : float, optional
+        Warp only the frames shown from ``start`` up to, not including, ``end``: seconds on
+        the input's timeline (:attr:`VideoInfo.start` is its first frame). The output then
+        starts at 0 with the first of those frames, and holds the audio packets that start
+        in the range (whole packets: a range is cut at frames, not at audio samples). Each
+        range is encoded on its own, from a key frame, so ranges warped on different
+        machines join without re-encoding (:func:`join_video_segments`).
+    audio : bool
+        Copy the audio streams (default); False writes the video alone.
 
     Returns
     -------
@@ -848,6 +865,7 @@ def warp_video(
         raise TypeError("give exactly one of inverse_map and handles")
     if width is not None and (width < 4 or width % 4):
         raise VideoError(f"--width {width}: a video's width must be a multiple of 4 (4:2:0 video has even sizes)")
+    span = _time_range(start, end)
     muxer = _check_destination(source, destination)
     info = probe_video(source)
     problem = info.panorama_problem()
@@ -898,17 +916,12 @@ def warp_video(
     warper = _Warper(np.asarray(the_map, np.float32), (info.width, info.height), info.pix_fmt, out_format, order, color)
     map_seconds = time.perf_counter() - start
 
-    if spherical is None:
-        written = info.spherical
-    elif spherical is True:
-        written = info.spherical or EQUIRECTANGULAR
-    elif spherical is False:
-        written = None
-    else:
-        written = spherical
-    if written is not None and not written.full_panorama:
-        raise ValueError(f"the spherical metadata written must be a full mono equirectangular panorama, not {written.describe()}")
+    written = _spherical_written(info, spherical)
     expected = info.frames or (round(info.duration * float(info.rate)) if info.duration and info.rate else None)
+    if span is not None:
+        last = info.start + info.duration if info.duration else float(span[1])
+        covered = min(float(span[1]), last) - max(float(span[0]), info.start)
+        expected = max(0, round(covered * float(info.rate))) if info.rate and info.duration else None
 
     tmp = _temporary_file(destination)
     opencv = _opencv_single_threaded()
@@ -939,37 +952,69 @@ def warp_video(
             out_video.codec_context.codec_tag = "hvc1"  # what Apple's players want for HEVC in MP4
         if "language" in stream.metadata:
             out_video.metadata["language"] = stream.metadata["language"]
+        audio_streams = list(container.streams.audio) if audio else []
         audio_out = {}
-        for a in container.streams.audio:
+        for a in audio_streams:
             copied = output.add_stream_from_template(a)
             copied.metadata.update({k: v for k, v in a.metadata.items() if k in ("language", "title", "handler_name")})
             audio_out[a.index] = copied
         try:
             output.start_encoding()
         except av.FFmpegError as exc:
-            what = ", ".join(info.audio) or "its streams"
+            what = ", ".join(info.audio) if audio_streams else "its streams"
             raise VideoError(
                 f"{source}: cannot write {what} into a {destination.suffix} file ({_ffmpeg_reason(exc)}); "
                 "try .mov, or convert the audio first"
             ) from None
         stream.thread_type = "AUTO"
+        if span is not None:  # from the key frame before the range's start
+            container.seek(max(0, int(span[0] / _time_base(stream))), stream=stream, backward=True)
 
         def decode() -> None:
             """Demux and decode on this thread; hand audio packets and frame warps (futures) to the caller, in order."""
             count = 0
+            shift: Fraction | None = None  # seconds taken off the time stamps of a range
+            waiting: list[Any] = []  # a range's audio packets met before its first frame
             try:
-                for packet in container.demux(stream, *container.streams.audio):
+                for packet in container.demux(stream, *audio_streams):
                     if stop.is_set():
                         return
                     if packet.stream.type == "audio":
-                        if packet.size and not _put(items, ("audio", packet), stop):
+                        if not packet.size or packet.pts is None:
+                            continue
+                        if span is not None:
+                            if not span[0] <= packet.pts * _time_base(packet) < span[1]:
+                                continue
+                            if shift is None:  # until the first frame of the range says how far to move them
+                                waiting.append(packet)
+                                continue
+                            _move(packet, shift)
+                        if not _put(items, ("audio", packet), stop):
                             return
                         continue
                     try:
                         frames = stream.decode(packet)
                     except av.FFmpegError as exc:
                         raise VideoError(f"{source}: the video stream is broken after frame {count} ({_ffmpeg_reason(exc)})") from None
+                    past = False
                     for frame in frames:
+                        if span is not None:
+                            if frame.pts is None:
+                                raise VideoError(f"{source}: frame {count} has no time stamp, so it cannot be placed in a range")
+                            when = frame.pts * _time_base(frame)
+                            if when < span[0]:
+                                continue
+                            if when >= span[1]:
+                                past = True
+                                break
+                            if shift is None:
+                                shift = when
+                                for early in waiting:
+                                    _move(early, shift)
+                                    if not _put(items, ("audio", early), stop):
+                                        return
+                                waiting.clear()
+                            frame.pts -= round(shift / _time_base(frame))
                         if (frame.width, frame.height) != (info.width, info.height):
                             raise VideoError(
                                 f"{source}: frame {count} is {frame.width} x {frame.height}, the first ones {info.width} x {info.height}"
@@ -979,6 +1024,8 @@ def warp_video(
                         if not _put(items, ("video", pool.submit(warper, frame)), stop):
                             return
                         count += 1
+                    if past:  # the decoder gives frames in the order they are shown: the range is done
+                        break
             except av.FFmpegError as exc:
                 _put(items, ("error", VideoError(f"{source}: the file is broken after frame {count} ({_ffmpeg_reason(exc)})")), stop)
             except BaseException as exc:  # handed to the caller, raised there
@@ -1011,7 +1058,10 @@ def warp_video(
                 if progress is not None and progress(done, expected) is False:
                     raise VideoCancelled(f"cancelled after {done} frame(s); {destination} was not written")
             output.mux(out_video.encode(None))
-            _check_complete(info, done, last_end)
+            if span is None:
+                _check_complete(info, done, last_end)
+            elif done == 0:
+                raise VideoError(f"{source}: no frame is shown from {float(span[0]):g} s to {float(span[1]):g} s")
             output.close()
         except av.FFmpegError as exc:  # the encoder or the muxer (a full disk, say)
             raise VideoError(f"{destination}: cannot encode or write the video after {done} frame(s) ({_ffmpeg_reason(exc)})") from None
@@ -1054,6 +1104,224 @@ def warp_video(
         spherical=written,
         warnings=warnings,
     )
+
+
+def join_video_segments(
+    segments: Sequence[str | os.PathLike[str]],
+    destination: str | os.PathLike[str],
+    *,
+    source: str | os.PathLike[str],
+    spherical: Spherical | bool | None = None,
+) -> VideoReport:
+    """Join videos warped range by range into one, without re-encoding; the sound from the source.
+
+    The segments are the outputs of :func:`warp_video` with ``audio=False`` on consecutive
+    ranges that together cover the whole ``source`` (``start=`` one range's ``end``). Their
+    packets are copied byte for byte and put back on the source's timeline: the frames are
+    the source's frames in the order they are shown, so the ``i``-th frame written takes the
+    time stamp of the source's ``i``-th frame. The source's audio streams are copied packet
+    for packet beside them, its metadata and spherical metadata as :func:`warp_video` keeps them.
+
+    Parameters
+    ----------
+    segments : sequence of path-like
+        The warped ranges in order; each starts with a key frame (as :func:`warp_video`
+        writes them), all with the same encoder settings and frame size.
+    destination : path-like
+        ``.mp4``, ``.m4v`` or ``.mov``; written whole at the end, never one of the inputs.
+    source : path-like
+        The video the segments were warped from.
+    spherical : Spherical or bool, optional
+        As in :func:`warp_video`.
+
+    Returns
+    -------
+    VideoReport
+        ``seconds`` the time the join took; ``map_seconds`` 0.
+
+    Raises
+    ------
+    VideoError
+        A segment is missing or unreadable, the segments' encoders differ (their headers),
+        or their frames do not add up to the source's.
+    """
+    av = _av()
+    source, destination = Path(source), Path(destination)
+    paths = [Path(p) for p in segments]
+    if not paths:
+        raise VideoError(f"{destination}: no segments to join")
+    muxer = _check_destination(source, destination)
+    if any(_same_path(p, destination) for p in paths):
+        raise VideoError(f"{destination}: the output would overwrite one of its segments")
+    info = probe_video(source)
+    written = _spherical_written(info, spherical)
+    tick = time.perf_counter()
+
+    # the source's frame times (in the order they are shown) and its audio, in one reading
+    container = _open_input(source)
+    try:
+        stream = _video_stream(container, source)
+        shown: list[int] = []
+        sound: list[Any] = []
+        try:
+            for packet in container.demux(stream, *container.streams.audio):
+                if not packet.size:
+                    continue
+                if packet.stream.type == "audio":
+                    sound.append(packet)
+                elif packet.pts is not None:
+                    shown.append(packet.pts)
+        except av.FFmpegError as exc:
+            raise VideoError(f"{source}: the file is broken after {len(shown)} frame(s) ({_ffmpeg_reason(exc)})") from None
+        shown.sort()
+        time_base = _time_base(stream)
+        audio_streams = list(container.streams.audio)
+        metadata = {k: v for k, v in container.metadata.items() if k not in _OWN_METADATA}
+        language = stream.metadata.get("language")
+    except BaseException:
+        container.close()
+        raise
+
+    opened = []
+    tmp = _temporary_file(destination)
+    finished = False
+    try:
+        for path in paths:
+            try:
+                opened.append(av.open(str(path)))
+            except (av.FFmpegError, OSError) as exc:
+                raise VideoError(f"{path}: cannot read this segment ({_ffmpeg_reason(exc)})") from None
+        first = opened[0].streams.video[0]
+        header = bytes(first.codec_context.extradata or b"")
+        for path, seg in zip(paths, opened, strict=True):
+            v = seg.streams.video[0]
+            same = (v.codec_context.name, v.width, v.height, v.format.name) == (first.codec_context.name, first.width, first.height, first.format.name)
+            if not same or bytes(v.codec_context.extradata or b"") != header:
+                raise VideoError(f"{path}: this segment was encoded unlike {paths[0].name} (its codec, size or encoder header differ)")
+        output = av.open(str(tmp), "w", format=muxer)
+        try:
+            output.metadata.update(metadata)
+            out_video = output.add_stream_from_template(first)
+            out_video.time_base = time_base
+            if language:
+                out_video.metadata["language"] = language
+            audio_out = {a.index: output.add_stream_from_template(a) for a in audio_streams}
+            for a in audio_streams:
+                audio_out[a.index].metadata.update({k: v for k, v in a.metadata.items() if k in ("language", "title", "handler_name")})
+            output.start_encoding()
+            pending = iter(sound)
+            next_sound = next(pending, None)
+            count = 0
+            for path, seg in zip(paths, opened, strict=True):
+                v = seg.streams.video[0]
+                packets = [q for q in seg.demux(v) if q.size]
+                if not packets or packets[0].pts is None or count + len(packets) > len(shown):
+                    raise VideoError(f"{path}: the segments hold more frames than {source} ({len(shown)})")
+                if any(q.pts is None for q in packets):
+                    raise VideoError(f"{path}: a frame of this segment has no time stamp")
+                base = min(int(q.pts) for q in packets)
+                begin = Fraction(shown[count]) * time_base  # where this segment's first frame is shown
+                for q in packets:
+                    pts = begin + (int(q.pts) - base) * _time_base(v)
+                    dts = begin + (int(q.dts if q.dts is not None else q.pts) - base) * _time_base(v)
+                    while next_sound is not None and next_sound.dts is not None and next_sound.dts * next_sound.time_base <= dts:
+                        next_sound.stream = audio_out[next_sound.stream.index]
+                        output.mux(next_sound)
+                        next_sound = next(pending, None)
+                    q.pts, q.dts = round(pts / time_base), round(dts / time_base)
+                    q.time_base = time_base
+                    q.stream = out_video
+                    output.mux(q)
+                count += len(packets)
+            if count != len(shown):
+                raise VideoError(f"the segments hold {count} frame(s) but {source} has {len(shown)}: a range is missing")
+            while next_sound is not None:
+                next_sound.stream = audio_out[next_sound.stream.index]
+                output.mux(next_sound)
+                next_sound = next(pending, None)
+        except av.FFmpegError as exc:
+            raise VideoError(f"{destination}: cannot write the joined video ({_ffmpeg_reason(exc)})") from None
+        finally:
+            output.close()
+        if written is not None:
+            write_spherical(tmp, written, in_place=True)
+        os.replace(tmp, destination)
+        finished = True
+    finally:
+        for seg in opened:
+            seg.close()
+        container.close()
+        if not finished:
+            tmp.unlink(missing_ok=True)
+    return VideoReport(
+        source=source,
+        destination=destination,
+        frames=count,
+        seconds=time.perf_counter() - tick,
+        map_seconds=0.0,
+        size=(first.width, first.height),
+        codec=first.codec_context.name,
+        pix_fmt=first.format.name,
+        options={},
+        planes=True,
+        audio=info.audio,
+        dropped=info.others,
+        spherical=written,
+        warnings=(),
+    )
+
+
+def _same_path(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve()
+    except OSError:
+        return False
+
+
+def _spherical_written(info: VideoInfo, spherical: Spherical | bool | None) -> Spherical | None:
+    """The spherical metadata to write: the input's by default, plain equirectangular for True, none for False."""
+    if spherical is None:
+        written = info.spherical
+    elif spherical is True:
+        written = info.spherical or EQUIRECTANGULAR
+    elif spherical is False:
+        written = None
+    else:
+        written = spherical
+    if written is not None and not written.full_panorama:
+        raise ValueError(f"the spherical metadata written must be a full mono equirectangular panorama, not {written.describe()}")
+    return written
+
+
+def _time_base(thing: Any) -> Fraction:
+    """The time base of a stream, packet or frame (FFmpeg always sets one on what it reads)."""
+    time_base = thing.time_base
+    if time_base is None:
+        raise VideoError(f"{thing}: no time base: its time stamps mean nothing")
+    return Fraction(time_base)
+
+
+def _move(packet: Any, seconds: Fraction) -> None:
+    """Move a packet ``seconds`` earlier (a range's output starts at 0)."""
+    offset = round(seconds / _time_base(packet))
+    packet.pts -= offset
+    if packet.dts is not None:
+        packet.dts -= offset
+
+
+def _time_range(start: float | None, end: float | None) -> tuple[Fraction, Fraction] | None:
+    """``(start, end)`` as exact fractions of a second (an open end is infinitely far), or None for the whole video."""
+    if start is None and end is None:
+        return None
+    far = Fraction(10**18)  # an open end: further than any video goes
+    for name, value in (("start", start), ("end", end)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, Fraction)) or not np.isfinite(float(value))):
+            raise ValueError(f"{name} must be a finite number of seconds or None, got {value!r}")
+    lo = -far if start is None else Fraction(start)
+    hi = far if end is None else Fraction(end)
+    if not lo < hi:
+        raise ValueError(f"the range's start ({start} s) must come before its end ({end} s)")
+    return lo, hi
 
 
 def _check_complete(info: VideoInfo, frames: int, last_end: float | None) -> None:
