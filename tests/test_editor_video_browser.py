@@ -3,7 +3,8 @@
 ``Editor(clip)`` on a tiny synthetic clip (tests/test_editor_video.py's): the frame slider is
 shown; moving it to another frame shows that frame in the input pane (its pixels change, the
 kernel's ``frame`` follows) and the handles stay; Save video shows its progress in the status
-bar, then where it wrote the video, and the file is there with every frame.
+bar, then where it wrote the video, and the file is there with every frame; saved again
+(slowed down in the kernel), Cancel stops it midway and nothing is written.
 """
 
 from __future__ import annotations
@@ -101,5 +102,32 @@ def test_the_slider_shows_another_frame_and_save_video_writes_the_video(jupyter_
         assert str(output) in nb.output(".ow-message").text_content()
         assert not nb.output('[data-action="cancel-video"]').is_visible()
         nb.screenshot("editor_video_saved")
-    with av.open(str(output)) as container:
-        assert sum(1 for _ in container.decode(video=0)) == FRAMES
+        with av.open(str(output)) as container:
+            assert sum(1 for _ in container.decode(video=0)) == FRAMES
+
+        # Save video again, each frame slowed to 0.4 s in the kernel, and Cancel it midway: nothing is written
+        output.unlink()
+        bh.run_in_kernel(
+            client,
+            "import time, omniwidget.io.video as _video\n"
+            "_warp_frame = _video._Warper.__call__\n"
+            "_video._Warper.__call__ = lambda self, frame: (time.sleep(0.4), _warp_frame(self, frame))[1]\n"
+            "print('slowed')",
+        )
+        save.click()
+        cancel = nb.output('[data-action="cancel-video"]')
+        bh.wait_until(
+            lambda: cancel.is_visible() and (kernel_json(client, "ed.status['video']").get("done") or 0) >= 2,
+            timeout=60,
+            description="Cancel offered while frames are saved",
+            diagnostics=nb.diagnostics,
+        )
+        cancel.click()
+        bh.wait_until(lambda: root.get_attribute("data-video") == "cancelled", timeout=60, description="the save cancelled", diagnostics=nb.diagnostics)
+        job = kernel_json(client, "ed.status['video']")
+        assert 2 <= job["done"] < FRAMES, job
+        assert "cancelled" in nb.output(".ow-message").text_content()
+        assert not cancel.is_visible()
+        bh.run_in_kernel(client, "_video._Warper.__call__ = _warp_frame\nprint('restored')")
+    assert not output.exists()
+    assert [p.name for p in output.parent.iterdir() if p.name.startswith(f".{output.name}")] == []  # no temporary file left
