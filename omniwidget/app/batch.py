@@ -1,4 +1,4 @@
-"""Batches beyond one machine: many panoramas warped alike, in-process or on a Dask cluster.
+"""Batches beyond one machine: many panoramas and long 360° videos warped alike, in-process or on a Dask cluster.
 
 :func:`warp_files` warps each input file by one handles document or one saved map and
 writes its output, either here (threads, the default) or on a :mod:`dask.distributed`
@@ -32,6 +32,15 @@ all, save it (``omniwidget warp FRAME -H handles.json --map map.npy``, or
 (A map computed as one Dask task that the other tasks wait for was tried and dropped: a task
 waiting for it must leave its thread to the map's task, and the scheduler then starts more
 tasks, each holding a decoded image, for as long as the map takes.)
+
+Videos: a video is cut into equal time ranges (``segment_seconds``). A first task reads its
+length and plans the ranges (on a worker: the client need not see the file), one task per
+range warps it into a hidden file beside the output
+(:func:`~omniwidget.io.video.warp_video` with ``start``/``end``, video only, from a key frame),
+and a last task, which Dask starts when all the ranges are written, joins them without
+re-encoding (:func:`~omniwidget.io.video.join_video_segments`, the source's sound copied
+beside them); then the range files are removed. In-process the same ranges are warped one
+after the other, so the bytes are the same either way.
 
 Failures: a task that raises is run again up to ``retries`` times (Dask's ``retries=``, or a
 loop in-process); a task whose worker dies is rescheduled by Dask itself (up to the
