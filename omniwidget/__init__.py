@@ -3,8 +3,9 @@
 The package is layered as the paper reads: :mod:`omniwidget.sphere` (directions, Möbius
 maps), :mod:`omniwidget.document` (the handles), :mod:`omniwidget.method` (controls, the
 Sec. 3.4 solve, mesh, bounded biharmonic weights), :mod:`omniwidget.raster` (the per-pixel
-engine), :mod:`omniwidget.evaluate`, :mod:`omniwidget.io`, :mod:`omniwidget.app`, then the
-widget and the pane; each imports only the layers before it. The core needs only numpy,
+engine), :mod:`omniwidget.evaluate`, :mod:`omniwidget.detect` (suggested lines, levelling),
+:mod:`omniwidget.io`, :mod:`omniwidget.app`, then the widget and the pane; each imports only
+the layers before it. The core needs only numpy,
 scipy and OpenCV; importing :mod:`omniwidget` loads nothing more (the notebook editor,
 ``omniwidget.Editor`` in :mod:`omniwidget.widget`, loads anywidget when first used).
 Positions at every public boundary are ``[lon, lat]`` in degrees (conventions: :mod:`omniwidget.sphere.coords`).
@@ -20,8 +21,10 @@ Examples
 
 from ._version import __version__
 from .data import sample_image, sample_path
+from .detect.level import Level, level, level_document
+from .detect.lines import Suggestion, suggest_lines, suggestions_to_handles
 from .document.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
-from .errors import HandlesError, ImageError, OmniwidgetError
+from .errors import HandlesError, ImageError, LevelError, OmniwidgetError
 from .io.images import read_image, read_panorama, to_equirectangular, write_image
 from .raster.pipeline import BlendWarning, Result, warp
 from .raster.warping import WarpResult, warp_moebius
@@ -44,15 +47,20 @@ __all__ = [
     "Handles",
     "HandlesError",
     "ImageError",
+    "Level",
+    "LevelError",
     "LineHandle",
     "Moebius",
     "OmniwidgetError",
     "Options",
     "PointHandle",
     "Result",
+    "Suggestion",
     "WarpResult",
     "__version__",
     "load_handles",
+    "level",
+    "level_document",
     "lonlat_to_px",
     "lonlat_to_xyz",
     "px_to_lonlat",
@@ -61,6 +69,8 @@ __all__ = [
     "sample_image",
     "sample_path",
     "save_handles",
+    "suggest_lines",
+    "suggestions_to_handles",
     "to_equirectangular",
     "warp",
     "warp_moebius",

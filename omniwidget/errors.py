@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["OmniwidgetError", "HandlesError", "ImageError", "VideoError"]
+__all__ = ["OmniwidgetError", "HandlesError", "ImageError", "LevelError", "VideoError"]
 
 
 class OmniwidgetError(ValueError):
@@ -24,3 +24,7 @@ class ImageError(OmniwidgetError):
 
 class VideoError(ImageError):
     """A video cannot be read, warped or written: not a video, no video stream, frames not 2:1, a broken stream."""
+
+
+class LevelError(OmniwidgetError):
+    """A panorama cannot be levelled: too few vertical edges, or edges that disagree on where up is."""

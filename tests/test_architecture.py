@@ -138,6 +138,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("method", ("omniwidget.method",)),
     ("raster", ("omniwidget.raster",)),
     ("evaluate", ("omniwidget.evaluate",)),
+    ("detect", ("omniwidget.detect",)),
     ("io", ("omniwidget.io", "omniwidget.data")),
     ("app", ("omniwidget.app", "omniwidget.batch")),
     ("widget and pane", ("omniwidget.widget", "omniwidget.viz", "omniwidget.__main__")),

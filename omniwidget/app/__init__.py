@@ -1,4 +1,4 @@
-"""Layer 7, the applications in plain Python: the command line and the editing session the editor wraps.
+"""Layer 8, the applications in plain Python: the command line and the editing session the editor wraps.
 
 - :mod:`.cli` ``omniwidget warp``, ``omniwidget demo``, ``omniwidget schema``.
 - :mod:`.session` :class:`~.session.EditingSession`: undo, redo, autosave, the worker that

@@ -22,6 +22,13 @@ camera-frame point ``p`` is seen at ``coords.xyz_to_lonlat(p)``. A turn about th
 axis only shifts longitudes: the room-frame direction of a pixel at ``(lon, lat)`` is the
 direction of ``(lon - yaw, lat)``.
 
+*Tilted camera* (``pitch``, ``roll``): the camera frame is then further turned by the
+tilt ``T = R_y(pitch) R_x(roll)``, where ``R_x(a)`` turns by ``a`` degrees right-handedly
+about the forward axis ``+x`` (lon 0, lat 0) and ``R_y(a)`` about ``+y`` (lon 90, lat 0):
+a level camera-frame direction ``d`` is seen in the tilted panorama at ``T d``. The
+zenith is then seen at ``T (0, 0, 1) = (sin p cos r, -sin r, cos p cos r)``; this is the
+convention of :class:`omniwidget.detect.Level`.
+
 Faces are named by the room-frame axis they are perpendicular to: ``"west"`` (``-x``),
 ``"east"`` (``+x``), ``"south"`` (``-y``), ``"north"`` (``+y``), ``"floor"`` (``-z``) and
 ``"ceiling"`` (``+z``).
@@ -148,6 +155,8 @@ class Scene:
         Grid spacing in metres, ``None`` for no grid.
     line_width, edge_width : float
         Painted width of grid lines and of edge lines, metres.
+    pitch, roll : float
+        Tilt of the camera, degrees (the module's *Tilted camera*); 0 for a level camera.
     """
 
     image: NDArray[np.uint8]
@@ -158,6 +167,8 @@ class Scene:
     grid: float | None
     line_width: float
     edge_width: float
+    pitch: float = 0.0
+    roll: float = 0.0
 
     @property
     def width(self) -> int:
@@ -217,8 +228,12 @@ class Scene:
             Names from :data:`FACE_NAMES`.
         """
         lonlat = np.asarray(lonlat, dtype=np.float64)
-        room_lonlat = np.stack([lonlat[..., 0] - self.yaw, lonlat[..., 1]], axis=-1)
-        face, _ = _cast_rays(coords.lonlat_to_xyz(room_lonlat), np.array(self.camera), np.array(self.size) / 2)
+        if self.pitch == 0.0 and self.roll == 0.0:
+            room_lonlat = np.stack([lonlat[..., 0] - self.yaw, lonlat[..., 1]], axis=-1)
+            directions = coords.lonlat_to_xyz(room_lonlat)
+        else:
+            directions = coords.lonlat_to_xyz(lonlat) @ (_tilt_matrix(self.pitch, self.roll) @ _yaw_matrix(self.yaw))
+        face, _ = _cast_rays(directions, np.array(self.camera), np.array(self.size) / 2)
         return np.array(FACE_NAMES)[face]
 
 
@@ -843,6 +858,8 @@ def synthetic_room(
     supersample: int = 2,
     noise: float = 0.0,
     seed: int | None = None,
+    pitch: float = 0.0,
+    roll: float = 0.0,
 ) -> Scene:
     """Render a box room seen from inside as an equirectangular panorama.
 
@@ -880,6 +897,10 @@ def synthetic_room(
         With the default 0 the image is clean and ``seed`` is unused.
     seed : int, optional
         Seed of the noise, for a reproducible noisy image.
+    pitch, roll : float
+        Tilt of the camera in degrees, each within ±90 (the module's *Tilted camera*:
+        the zenith is seen at ``(sin p cos r, -sin r, cos p cos r)``). The lines are
+        the exact images in the tilted panorama. With both 0 the camera is level.
 
     Returns
     -------
@@ -910,6 +931,10 @@ def synthetic_room(
         inside = ", ".join(f"|{axis}| < {h:g}" for axis, h in zip("xyz", half, strict=True))
         raise ValueError(f"camera {tuple(camera)} is not strictly inside the room: it needs {inside} metres")
     yaw = _finite("yaw", yaw)
+    pitch = _finite("pitch", pitch)
+    roll = _finite("roll", roll)
+    if abs(pitch) > 90 or abs(roll) > 90:
+        raise ValueError(f"pitch and roll must be within ±90 degrees, got pitch={pitch}, roll={roll}")
     line_width = _positive("line_width", line_width)
     edge_width = 3 * line_width if edge_width is None else _positive("edge_width", edge_width)
     if grid is not None:
@@ -924,13 +949,14 @@ def synthetic_room(
         raise ValueError(f"seed must be an integer or None, got {seed!r}")
 
     grid_lines = [_grid_positions(h, grid) for h in half]
-    image = _render(width, supersample, camera_, half, yaw, grid, grid_lines, line_width, edge_width)
+    tilt = None if pitch == 0.0 and roll == 0.0 else _tilt_matrix(pitch, roll)
+    image = _render(width, supersample, camera_, half, yaw, grid, grid_lines, line_width, edge_width, tilt)
     if noise > 0:
         rng = np.random.default_rng(seed)
         noisy = image + rng.normal(0.0, noise, image.shape)
         image = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
 
-    to_camera = _yaw_matrix(yaw)
+    to_camera = _yaw_matrix(yaw) if tilt is None else tilt @ _yaw_matrix(yaw)
     lines = [
         _scene_line(to_camera @ (p - camera_), to_camera @ (q - camera_), kind, faces)
         for p, q, kind, faces in _room_segments(half, grid_lines)
@@ -944,6 +970,8 @@ def synthetic_room(
         grid=grid,
         line_width=line_width,
         edge_width=edge_width,
+        pitch=pitch,
+        roll=roll,
     )
 
 
@@ -954,6 +982,15 @@ def _yaw_matrix(yaw: float) -> FloatArray:
     """Rotation by ``yaw`` degrees counter-clockwise about ``+z``: room frame to camera frame."""
     c, s = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _tilt_matrix(pitch: float, roll: float) -> FloatArray:
+    """The camera tilt ``R_y(pitch) R_x(roll)`` (module docstring): level camera frame to tilted, (3, 3)."""
+    cp, sp = math.cos(math.radians(pitch)), math.sin(math.radians(pitch))
+    cr, sr = math.cos(math.radians(roll)), math.sin(math.radians(roll))
+    about_y = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    about_x = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return about_y @ about_x
 
 
 def _grid_positions(half: float, grid: float | None) -> FloatArray:
@@ -1093,6 +1130,7 @@ def _render(
     grid_lines: list[FloatArray],
     line_width: float,
     edge_width: float,
+    tilt: FloatArray | None = None,
 ) -> NDArray[np.uint8]:
     """Ray-cast the room into a ``(width // 2, width, 3)`` uint8 image.
 
@@ -1110,8 +1148,13 @@ def _render(
     for row in range(0, height, rows_per_block):
         rows = min(rows_per_block, height - row)
         lat_block = lat[row * n : (row + rows) * n]
-        lonlat = np.stack(np.broadcast_arrays(room_lon[None, :], lat_block[:, None]), axis=-1)
-        face, hit = _cast_rays(coords.lonlat_to_xyz(lonlat), camera, half)
+        if tilt is None:
+            lonlat = np.stack(np.broadcast_arrays(room_lon[None, :], lat_block[:, None]), axis=-1)
+            directions = coords.lonlat_to_xyz(lonlat)
+        else:  # a tilted ray d is the room direction (T Y)^T d; as rows, d @ (T Y)
+            lonlat = np.stack(np.broadcast_arrays(lon[None, :], lat_block[:, None]), axis=-1)
+            directions = coords.lonlat_to_xyz(lonlat) @ (tilt @ _yaw_matrix(yaw))
+        face, hit = _cast_rays(directions, camera, half)
         ink = _ink(face, hit, half, grid, grid_lines, line_width, edge_width)
         colour_index = np.where(ink, np.uint8(_INK), face)  # (rows * n, width * n)
         for c, table in enumerate(channels):

@@ -1,0 +1,493 @@
+"""Level a panorama: the camera's pitch and roll from the vertical edges it sees.
+
+Every vertical 3D edge is seen along a great circle through the vertical direction: the
+plane through the camera and the edge contains the vertical. So the great circles of the
+vertical edges all pass through one point of the sphere, the vertical vanishing direction
+``v``, and their unit normals ``n_i`` satisfy ``n_i · v = 0``. :func:`level` finds ``v``
+among the suggested lines (:func:`omniwidget.detect.lines.suggest_lines`) robustly: a
+RANSAC over pairs of arcs whose crossing lies near the zenith, then a reweighted least
+squares refit on the inliers (``v`` the smallest eigenvector of ``Σ w_i n_i n_iᵀ``, Huber
+weights). The rotation that takes ``v`` to the zenith by the shortest turn levels the
+panorama without turning it about the vertical.
+
+Convention
+----------
+The camera's tilt is ``T = R_y(pitch) R_x(roll)``: ``R_x(a)`` turns by ``a`` degrees
+right-handedly about the forward axis ``+x`` (lon 0, lat 0), ``R_y(a)`` about ``+y``
+(lon 90, lat 0). A direction ``d`` of the level world is seen in the tilted panorama at
+``T d``; in particular the zenith is seen at ``up = T (0, 0, 1) = (sin p cos r, -sin r,
+cos p cos r)``, so a positive pitch moves the zenith towards lon 0 and a positive roll
+towards lon -90. :func:`omniwidget.evaluate.scenes.synthetic_room` renders with the same
+convention.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..document.handles import CageHandle, Handle, Handles, LineHandle, Options, PointHandle
+from ..errors import LevelError
+from ..method.constraints import build_constraints
+from ..sphere import coords
+from ..sphere.moebius import Moebius
+from .lines import DETECT_WIDTH, Suggestion, panorama_gray, suggest_lines
+
+__all__ = ["LEVEL_ID", "Level", "level", "level_document", "level_handle", "tilt_rotation", "up_to_pitch_roll"]
+
+LonLat = tuple[float, float]
+FloatArray = NDArray[np.float64]
+
+#: The id of the level point handle in a document.
+LEVEL_ID = "level"
+#: Farthest the vertical direction is looked for from the zenith, degrees.
+MAX_TILT = 35.0
+#: An arc is never a vertical edge when its great circle passes farther than this (degrees) from the vertical direction.
+INLIER_DISTANCE = 1.0
+#: Refuse when the inliers' root-mean-square distance from the vertical, in their own errors, exceeds this.
+MAX_RESIDUAL = 2.0
+#: Normals closer than this (degrees) belong to the same plane, counted as one edge.
+SAME_PLANE = 1.0
+#: An arc is a vertical edge when its circle passes within this many of its own errors (:func:`_sigma`) of the vertical.
+INLIER_SIGMAS = 3.0
+#: The Huber threshold of the refit, in errors.
+HUBER = 1.5
+#: The endpoints' accuracy assumed, in pixels of the panorama.
+ENDPOINT_PX = 0.5
+#: The arc length (degrees) whose endpoints are placed within :data:`ENDPOINT_PX`.
+REFERENCE_LENGTH = 20.0
+#: Contrast (share of the full range) above which an edge is taken as sharply placed.
+CLEAR_CONTRAST = 0.15
+#: Arcs reaching within this many degrees of the vertical direction (or its opposite) do not vote for it:
+#: a line on the floor passing near the camera's foot is seen along a circle nearly through the nadir
+#: too, while vertical edges are rarely seen so steeply.
+POLAR_CAP = 20.0
+#: Candidate directions scored at a time (bounds the (arcs x candidates) arrays).
+CANDIDATES_PER_BLOCK = 2048
+#: Shortest arc that votes for the vertical, degrees.
+MIN_EDGE_LENGTH = 5.0
+
+
+def tilt_rotation(pitch: float, roll: float) -> FloatArray:
+    """The camera tilt ``T = R_y(pitch) R_x(roll)`` of the module's convention, shape (3, 3).
+
+    Parameters
+    ----------
+    pitch, roll : float
+        Degrees.
+
+    Returns
+    -------
+    ndarray of float64, shape (3, 3)
+        A level direction ``d`` is seen at ``T @ d`` in the tilted panorama.
+    """
+    cp, sp = math.cos(math.radians(pitch)), math.sin(math.radians(pitch))
+    cr, sr = math.cos(math.radians(roll)), math.sin(math.radians(roll))
+    about_y = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    about_x = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return about_y @ about_x
+
+
+def up_to_pitch_roll(up: ArrayLike) -> tuple[float, float]:
+    """Pitch and roll (degrees) of a camera that sees the zenith at ``up`` (a ``[lon, lat]``).
+
+    The inverse of ``up = T (0, 0, 1) = (sin p cos r, -sin r, cos p cos r)``, with
+    ``roll`` in ``[-90, 90]``.
+    """
+    u = coords.lonlat_to_xyz(up)
+    roll = -math.degrees(math.asin(float(np.clip(u[1], -1.0, 1.0))))
+    pitch = math.degrees(math.atan2(float(u[0]), float(u[2])))
+    return pitch, roll
+
+
+def _turn(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The rotation matrix about ``a × b`` taking unit vector ``a`` to unit vector ``b`` (not antipodal)."""
+    axis = np.cross(a, b)
+    s = float(np.linalg.norm(axis))
+    c = float(a @ b)
+    if s < 1e-15:
+        return np.eye(3)
+    k = axis / s
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + s * kx + (1.0 - c) * (kx @ kx)
+
+
+@dataclass(frozen=True)
+class Level:
+    """How far a panorama's camera was from level, and the rotation that levels it.
+
+    Attributes
+    ----------
+    pitch, roll : float
+        Degrees, in the module's convention (``up = (sin p cos r, -sin r, cos p cos r)``).
+    up : (float, float)
+        ``[lon, lat]`` in degrees where the input panorama sees the true vertical.
+    edges : tuple of Suggestion
+        The vertical edges the estimate rests on (the inliers).
+    residual : float
+        Root mean square distance in degrees of the inliers' great circles from ``up``.
+    """
+
+    pitch: float
+    roll: float
+    up: LonLat
+    edges: tuple[Suggestion, ...] = ()
+    residual: float = 0.0
+
+    @property
+    def tilt(self) -> float:
+        """Angle of ``up`` from the zenith, degrees: how far the camera was from level."""
+        return float(90.0 - self.up[1])
+
+    def rotation(self) -> FloatArray:
+        """The levelling rotation as a matrix, shape (3, 3): ``up`` to the zenith about ``up × z``."""
+        return _turn(coords.lonlat_to_xyz(self.up), np.array([0.0, 0.0, 1.0]))
+
+    def moebius(self) -> Moebius:
+        """The levelling rotation as a Möbius map, input to output: ``up`` to the zenith, the yaw unchanged."""
+        return Moebius.from_rotation(self.rotation())
+
+    def handles(self) -> Handles:
+        """A handles document whose warp is exactly the levelling rotation.
+
+        One point handle (id ``"level"``) whose map is the rotation, and no still
+        background (``Options(anchor=None)``), which would otherwise hold the sphere far
+        from the handle unrotated.
+        """
+        return Handles((level_handle(self.moebius()),), Options(anchor=None))
+
+
+def level_handle(rotation: Moebius, position: LonLat = (0.0, 0.0)) -> PointHandle:
+    """The point handle (id ``"level"``) whose map is the rotation ``rotation``.
+
+    Parameters
+    ----------
+    rotation : Moebius
+        A rotation of the sphere.
+    position : (float, float)
+        Where the handle sits in the input, ``[lon, lat]``.
+
+    Returns
+    -------
+    PointHandle
+        ``position`` to ``rotation(position)``, turned by the rotation's local turn there.
+
+    Raises
+    ------
+    ValueError
+        If ``rotation`` is not a rotation of the sphere.
+    """
+    scale, turn = rotation.local_scale_rotation(position)
+    if abs(scale - 1.0) > 1e-9:
+        raise ValueError(f"the level edit needs a rotation of the sphere, got a map that scales by {scale:g}")
+    target = rotation(np.asarray(position, dtype=np.float64))
+    handle = PointHandle(
+        position=(float(position[0]), float(position[1])), target=(float(target[0]), float(target[1])), rotation=turn, id=LEVEL_ID
+    )
+    if not handle.moebius().isclose(rotation, 1e-7):
+        raise ValueError("the level edit needs a rotation of the sphere")
+    return handle
+
+
+def level_document(doc: Handles, rotation: Moebius) -> Handles:
+    """The editor's one-click Level: ``doc`` followed by the rotation ``rotation``.
+
+    Any previous handle with id ``"level"`` is removed and the level point handle
+    (:func:`level_handle`) is added; every other handle's output is carried by the
+    rotation: a point's target becomes ``R(final)`` and its turn grows by ``R``'s local
+    turn there, a cage's targets ``R(finals)``, a line's targets ``R(current targets)``
+    (for a line without explicit targets, the control points' images under the map the
+    method gives it now). The still background is switched off (``anchor=None``): it
+    would hold the far sphere unrotated. The level handle sits where the other handles
+    are farthest, so that far from them the warp is the rotation.
+
+    Near every handle the new warp is the rotation after the old one. Far from the
+    handles it is a blend of the rotation and the carried handles' maps: a cage's maps are
+    shifts from its vertices to their targets, which do not turn with the rotation, so far
+    from a cage the warp turns a little less than the rotation does.
+
+    Parameters
+    ----------
+    doc : Handles
+    rotation : Moebius
+        The levelling rotation (:meth:`Level.moebius`).
+
+    Returns
+    -------
+    Handles
+        A new document; ``doc`` is not changed.
+    """
+    kept = tuple(h for h in doc.handles if h.id != LEVEL_ID)
+    base = replace(doc, handles=kept)
+    line_maps = _line_maps(base)
+    out: list[Handle] = []
+    for i, h in enumerate(kept):
+        if isinstance(h, PointHandle):
+            final = h.final
+            _, turn = rotation.local_scale_rotation(final)
+            target = rotation(np.asarray(final, dtype=np.float64))
+            out.append(replace(h, target=(float(target[0]), float(target[1])), rotation=_wrap_turn(h.rotation + turn)))
+        elif isinstance(h, CageHandle):
+            finals = rotation(np.asarray(h.finals, dtype=np.float64))
+            out.append(replace(h, targets=tuple((float(lon), float(lat)) for lon, lat in finals)))
+        else:
+            current = (
+                np.asarray(h.targets, dtype=np.float64) if h.targets is not None else line_maps.get(i, h.moebius())(h.control_points())
+            )
+            moved = rotation(current)
+            start, middle, end = ((float(lon), float(lat)) for lon, lat in moved)
+            out.append(replace(h, targets=(start, middle, end), rectify=False))
+    out.append(level_handle(rotation, _farthest_from(kept)))
+    return Handles(tuple(out), replace(doc.options, anchor=None))
+
+
+def _farthest_from(handles: Sequence[Handle]) -> LonLat:
+    """A place on the equator band farthest from every control point of ``handles`` (``(0, 0)`` when there are none).
+
+    The level handle's map is the rotation alone; far from the other handles the blend is
+    then nearly that rotation, as the edit means.
+    """
+    points = [p for h in handles for p in (*_inputs(h), *_outputs(h))]
+    if not points:
+        return (0.0, 0.0)
+    lon, lat = np.meshgrid(np.arange(-180.0, 180.0, 5.0), np.arange(-60.0, 61.0, 5.0))
+    candidates = np.stack([lon.ravel(), lat.ravel()], axis=-1)
+    near = (coords.lonlat_to_xyz(candidates) @ coords.lonlat_to_xyz(np.array(points, dtype=np.float64)).T).max(axis=1)
+    lon0, lat0 = candidates[int(np.argmin(near))]
+    return (float(lon0), float(lat0))
+
+
+def _inputs(h: Handle) -> list[LonLat]:
+    if isinstance(h, PointHandle):
+        return [h.position]
+    if isinstance(h, CageHandle):
+        return list(h.vertices)
+    return [h.start, h.end]
+
+
+def _outputs(h: Handle) -> list[LonLat]:
+    if isinstance(h, PointHandle):
+        return [h.final]
+    if isinstance(h, CageHandle):
+        return list(h.finals)
+    return [] if h.targets is None else list(h.targets)
+
+
+def _wrap_turn(angle: float) -> float:
+    """An angle in degrees brought into ``(-180, 180]``."""
+    out = math.fmod(angle, 360.0)
+    if out > 180.0:
+        out -= 360.0
+    elif out <= -180.0:
+        out += 360.0
+    return out
+
+
+def _line_maps(doc: Handles) -> dict[int, Moebius]:
+    """The map the method gives each line without explicit targets (one control), by index in ``doc.handles``."""
+    if not any(isinstance(h, LineHandle) and h.targets is None for h in doc.handles):
+        return {}
+    pieces: dict[int, list[Moebius]] = {}
+    for control in build_constraints(doc).controls:
+        pieces.setdefault(control.handle, []).append(control.moebius)
+    return {i: maps[0] for i, maps in pieces.items() if len(maps) == 1 and isinstance(doc.handles[i], LineHandle)}
+
+
+# --- the estimate --------------------------------------------------------------------
+
+
+def _normals(edges: Sequence[Suggestion]) -> tuple[FloatArray, FloatArray]:
+    """Unit normals of the arcs' great circles, (k, 3), and their lengths in degrees, (k,)."""
+    a = coords.lonlat_to_xyz(np.array([s.start for s in edges], dtype=np.float64).reshape(-1, 2))
+    b = coords.lonlat_to_xyz(np.array([s.end for s in edges], dtype=np.float64).reshape(-1, 2))
+    n = np.cross(a, b)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return n, np.array([s.length for s in edges], dtype=np.float64)
+
+
+def _distinct_planes(normals: FloatArray) -> int:
+    """How many of the normals (k, 3) differ by more than :data:`SAME_PLANE` degrees (up to sign)."""
+    kept: list[FloatArray] = []
+    limit = math.cos(math.radians(SAME_PLANE))
+    for n in normals:
+        if all(abs(float(n @ m)) < limit for m in kept):
+            kept.append(n)
+    return len(kept)
+
+
+def _sigma(normals: FloatArray, mids: FloatArray, lengths: FloatArray, contrast: FloatArray, v: FloatArray, accuracy: float) -> FloatArray:
+    """How far (radians) each arc's great circle may pass from ``v`` by the endpoints' error alone.
+
+    An arc of length ``L`` whose endpoints are each off by ``accuracy`` tilts its circle by
+    about ``accuracy / L``; at ``v``, a distance ``d`` from the arc's middle, the circle is
+    off by about ``accuracy * (1 + d / L)``: short arcs far from ``v`` say little about it.
+    And a longer edge is fitted to more pixels, which places it better still: the error
+    shrinks further as ``sqrt(REFERENCE_LENGTH / L)``.
+    A faint edge is placed less accurately: below :data:`CLEAR_CONTRAST` the error grows
+    in inverse proportion to the contrast.
+    """
+    d = np.arccos(np.clip(np.abs(mids @ v), 0.0, 1.0))
+    faint = np.maximum(1.0, CLEAR_CONTRAST / np.maximum(contrast, 1e-3))
+    length = np.maximum(lengths, 1e-6)
+    return accuracy * (1.0 + d / np.radians(length)) * np.sqrt(REFERENCE_LENGTH / length) * faint
+
+
+def _residuals(normals: FloatArray, v: FloatArray) -> FloatArray:
+    """Distances (radians) of ``v`` from the arcs' great circles."""
+    return np.arcsin(np.clip(np.abs(normals @ v), 0.0, 1.0))
+
+
+def _passes_by(start: FloatArray, along: FloatArray, span: FloatArray, v: FloatArray) -> NDArray[np.bool_]:
+    """Whether each arc passes by ``±v``: the point of its circle nearest to ``v`` or ``-v`` lies inside the arc.
+
+    A vertical edge's arc lies on a circle through ``v`` and stops short of it, so the
+    nearest points are beyond its ends. A line on the floor near the camera's foot is seen
+    along a circle that passes close to the nadir too, but its arc sweeps past the nadir:
+    such arcs do not vote for ``v``.
+
+    Parameters
+    ----------
+    start, along : ndarray of float64, shape (k, 3)
+        Each arc's start and the unit tangent there (``normal x start``).
+    span : ndarray of float64, shape (k,)
+        Lengths, radians.
+    v : ndarray of float64, shape (3, m)
+        Candidate directions as columns.
+
+    Returns
+    -------
+    ndarray of bool, shape (k, m)
+    """
+    t = np.arctan2(along @ v, start @ v)  # the angle along each circle of the point nearest to v
+    opposite = np.where(t > 0, t - np.pi, t + np.pi)  # and of the point nearest to -v
+    inside = lambda angle: (angle > 0) & (angle < span[:, None])  # noqa: E731 - one use, two arguments
+    return inside(t) | inside(opposite)
+
+
+def _refit(normals: FloatArray, sigma: FloatArray, v: FloatArray, iterations: int = 8) -> FloatArray:
+    """Reweighted least squares: ``v`` the smallest eigenvector of ``Σ w_i n_i n_iᵀ``, ``w_i = 1 / σ_i²`` with Huber weights."""
+    for _ in range(iterations):
+        r = _residuals(normals, v) / sigma
+        w = np.where(r <= HUBER, 1.0, HUBER / np.maximum(r, 1e-15)) / sigma**2
+        scatter = (normals * w[:, None]).T @ normals
+        new = np.linalg.eigh(scatter)[1][:, 0]
+        v = new if new[2] >= 0 else -new
+    return v
+
+
+def level(
+    image: NDArray,
+    *,
+    suggestions: Sequence[Suggestion] | None = None,
+    min_edges: int = 4,
+    max_tilt: float = MAX_TILT,
+) -> Level:
+    """Estimate how far the camera was from level, from the vertical edges of the panorama.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, 2H) or (H, 2H, C)
+        Equirectangular panorama (as for :func:`omniwidget.detect.lines.suggest_lines`).
+    suggestions : sequence of Suggestion, optional
+        The lines to look among; by default every line :func:`suggest_lines` finds.
+    min_edges : int
+        Fewest distinct vertical edges to trust, ``>= 2``.
+    max_tilt : float
+        Farthest from the zenith the vertical is looked for, degrees, in ``(0, 90)``.
+
+    Returns
+    -------
+    Level
+
+    Raises
+    ------
+    LevelError
+        If fewer than ``min_edges`` vertical edges are found, if they do not fix the
+        vertical (all in one plane), or if they disagree on it.
+    ImageError
+        If ``image`` is not a usable panorama.
+    """
+    if isinstance(min_edges, bool) or not isinstance(min_edges, int | np.integer) or min_edges < 2:
+        raise ValueError(f"min_edges must be an integer of at least 2, got {min_edges!r}")
+    if isinstance(max_tilt, bool) or not isinstance(max_tilt, int | float | np.integer | np.floating) or not 0 < max_tilt < 90:
+        raise ValueError(f"max_tilt must be a number of degrees in (0, 90), got {max_tilt!r}")
+    if suggestions is None:
+        suggestions = suggest_lines(image, max_lines=None)
+    else:
+        panorama_gray(image)  # the same checks of the image
+    too_few = "found {found} vertical edge{s}, need at least {need}: the panorama shows too few vertical lines to level it"
+    candidates = [s for s in suggestions if s.length >= MIN_EDGE_LENGTH]
+    if candidates:
+        normals, lengths = _normals(candidates)
+        near = np.abs(normals[:, 2]) <= math.sin(math.radians(max_tilt)) + 1e-12  # the circle passes within max_tilt of the zenith
+        candidates = [s for s, ok in zip(candidates, near, strict=True) if ok]
+        normals, lengths = normals[near], lengths[near]
+    if len(candidates) < 2:
+        raise LevelError(too_few.format(found=len(candidates), s="" if len(candidates) == 1 else "s", need=min_edges))
+    accuracy = ENDPOINT_PX * 2 * math.pi / min(image.shape[1], DETECT_WIDTH)  # the width the lines were found at
+    ends = [coords.lonlat_to_xyz(np.array([s.start, s.end], dtype=np.float64)) for s in candidates]
+    mids = np.array([(p + q) / np.linalg.norm(p + q) for p, q in ends])
+    cap = math.sin(math.radians(INLIER_DISTANCE))
+    contrast = np.array([s.contrast for s in candidates])
+
+    ends_a = np.array([p for p, _ in ends])
+    ends_b = np.array([q for _, q in ends])
+    polar = math.cos(math.radians(POLAR_CAP))
+    along = np.cross(normals, ends_a)  # with ends_a, the frame of each arc's plane
+    spans = np.radians(lengths)
+
+    def votes(v: FloatArray, sigma: FloatArray) -> NDArray[np.bool_]:
+        """Which arcs vote for each candidate (columns of ``v``, shape (3, m)): (k, m)."""
+        r = np.arcsin(np.clip(np.abs(normals @ v), 0.0, 1.0))
+        far = ~_passes_by(ends_a, along, spans, v) & (np.maximum(np.abs(ends_a @ v), np.abs(ends_b @ v)) < polar)
+        return (r < INLIER_SIGMAS * sigma[:, None]) & (r < cap) & far
+
+    def inliers_of(v: FloatArray) -> tuple[NDArray[np.bool_], FloatArray]:
+        sigma = _sigma(normals, mids, lengths, contrast, v, accuracy)
+        return votes(v[:, None], sigma)[:, 0], sigma
+
+    cos_tilt = math.cos(math.radians(max_tilt))
+    i, j = np.triu_indices(len(candidates), 1)
+    v = np.cross(normals[i], normals[j])
+    size = np.linalg.norm(v, axis=1)
+    ok = size > math.sin(math.radians(5.0))  # planes that cross at a good angle
+    v = v[ok] / size[ok, None]
+    v *= np.where(v[:, 2] < 0, -1.0, 1.0)[:, None]
+    v = v[v[:, 2] >= cos_tilt]
+    if len(v) == 0:
+        raise LevelError(too_few.format(found=0, s="s", need=min_edges))
+    zenith = np.array([0.0, 0.0, 1.0])
+    sigma_z = _sigma(normals, mids, lengths, contrast, zenith, accuracy)  # the errors hardly change within max_tilt of the zenith
+    scores = np.concatenate(
+        [(votes(block.T, sigma_z) / sigma_z[:, None]).sum(axis=0) for block in np.array_split(v, max(1, len(v) // CANDIDATES_PER_BLOCK))]
+    )
+    best = v[int(np.argmax(scores))]
+    inliers, sigma = inliers_of(best)
+    for _ in range(3):
+        if inliers.sum() < 2:
+            break
+        v = _refit(normals[inliers], sigma[inliers], best)
+        inliers, sigma = inliers_of(v)
+        best = v
+    v = best
+    found = _distinct_planes(normals[inliers])
+    if found < min_edges:
+        raise LevelError(too_few.format(found=found, s="" if found == 1 else "s", need=min_edges))
+    spread = np.linalg.eigvalsh(normals[inliers].T @ normals[inliers])
+    if spread[1] < 0.02 * spread[2]:
+        raise LevelError(f"the {found} vertical edges found lie nearly in one plane through the camera, so they do not fix where up is")
+    r = _residuals(normals[inliers], v)
+    chi = math.sqrt(float(np.mean((r / sigma[inliers]) ** 2)))
+    residual = math.degrees(math.sqrt(float(np.mean(r**2))))
+    if chi > MAX_RESIDUAL:
+        raise LevelError(
+            f"the {found} vertical edges found disagree on where up is (by {residual:.2f}° on average), so the panorama is not levelled"
+        )
+    lon, lat = coords.xyz_to_lonlat(v)
+    up = (float(lon), float(lat))
+    pitch, roll = up_to_pitch_roll(up)
+    return Level(pitch=pitch, roll=roll, up=up, edges=tuple(s for s, ok in zip(candidates, inliers, strict=True) if ok), residual=residual)

@@ -1,0 +1,706 @@
+"""Suggested line handles: the straight 3D edges of a panorama, found in the image.
+
+A straight 3D segment is seen along a great-circle arc of the viewing sphere, and in any
+perspective (gnomonic) view of the sphere it is a straight image segment. So the
+panorama is resampled into perspective views (the six faces of a cube, each widened so
+that neighbouring views overlap and no segment is lost at a face border, the poles or the
+±180° seam), a plain 2D line-segment detector runs on each view, and each detected
+segment's endpoints are lifted back to the sphere as rays: the segment becomes the
+great-circle arc between them. Arcs of the same 3D edge (from overlapping views, from
+both borders of a painted band, or cut by a junction) lie on one great circle and
+overlap or nearly touch along it; they are merged into one arc, ranked by length and
+contrast and given a confidence.
+
+The detector is OpenCV's LSD (:func:`cv2.createLineSegmentDetector`): it finds each edge
+as one segment with sub-pixel ends and needs no thresholds tuned per image, where
+scikit-image's Canny edges and probabilistic Hough transform (kept as ``detector="hough"``
+for comparison) break edges into pieces, find spurious ones and are slower; the README
+gives the figures.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._checks import check_panorama
+from ..document.handles import Handles, LineHandle, Options
+from ..errors import ImageError
+from ..sphere import coords
+
+__all__ = [
+    "Arc",
+    "Suggestion",
+    "View",
+    "cube_views",
+    "detect_segments",
+    "find_arcs",
+    "lift_segments",
+    "merge_arcs",
+    "pair_bands",
+    "snap_ends",
+    "panorama_gray",
+    "render_view",
+    "suggest_lines",
+    "suggestions_to_handles",
+]
+
+LonLat = tuple[float, float]
+FloatArray = NDArray[np.float64]
+
+#: Half the field of view of each cube view, degrees: 45 covers the cube face, the rest overlaps.
+VIEW_HALF_ANGLE = 52.0
+#: Arcs whose points all lie this close (degrees) to a cluster's great circle may join it.
+MERGE_DISTANCE = 0.8
+#: The closeness (degrees) of the last merge, of midlines and single edges whatever their polarity.
+FINAL_DISTANCE = 0.5
+#: How far (degrees) an arc's end may move to the junction it stops short of (:func:`snap_ends`).
+SNAP_REACH = 2.0
+#: The longest merged arc, radians: below 180 degrees, so that its ends name it.
+MAX_ARC = math.radians(170.0)
+#: Largest gap (degrees) along a great circle between two arcs that are still one edge.
+MERGE_GAP = 4.0
+#: Largest angle (degrees) between the two borders of a thin painted line that are paired into its midline.
+BAND_DISTANCE = 2.5
+#: LSD's angle tolerance, degrees (its default 22.5 joins edges that meet at a slight bend, as at a corner).
+LSD_ANGLE = 22.5
+#: LSD's scale: the view is smoothed and resampled by this factor first.
+LSD_SCALE = 0.8
+#: Smallest panorama height the detector works on, pixels.
+MIN_HEIGHT = 32
+#: Widest the panorama is analysed at: a wider one is first reduced to it (area average). The
+#: view sizes, LSD's scale and the merge tolerances are set for it, and lines and tilt are
+#: angles, found as well here as at 12000 pixels: analysed whole, a 12k street scene gave
+#: texture for edges (a 6° tilt where there is none) in a minute.
+DETECT_WIDTH = 2048
+#: Shortest detected image segment kept before lifting, in pixels of a view.
+MIN_SEGMENT_PX = 8.0
+
+
+@dataclass(frozen=True)
+class Suggestion:
+    """A suggested line handle: a great-circle arc along a straight edge found in the image.
+
+    Parameters
+    ----------
+    start, end : (float, float)
+        ``[lon, lat]`` in degrees of the arc's endpoints in the input panorama.
+    length : float
+        Angular length of the arc, degrees.
+    contrast : float
+        Mean brightness step across the edge, as a share of the full range, in ``[0, 1]``.
+    confidence : float
+        In ``[0, 1]``: higher for longer, higher-contrast arcs whose whole extent the
+        detector saw; the suggestions are sorted by it.
+    """
+
+    start: LonLat
+    end: LonLat
+    length: float
+    contrast: float
+    confidence: float
+
+    def handle(self, id: str | None = None) -> LineHandle:
+        """The line handle along this arc (rectified by eq. (4) unless the document says otherwise)."""
+        return LineHandle(start=self.start, end=self.end, id=id)
+
+
+def suggestions_to_handles(suggestions: Iterable[Suggestion], options: Options | None = None) -> Handles:
+    """A handles document of one line handle per suggestion, ids ``"suggested-1"``, ``"suggested-2"``, ...
+
+    Parameters
+    ----------
+    suggestions : iterable of Suggestion
+    options : Options, optional
+        The document's options; the defaults if omitted.
+
+    Returns
+    -------
+    Handles
+    """
+    handles = tuple(s.handle(f"suggested-{i + 1}") for i, s in enumerate(suggestions))
+    return Handles(handles, Options() if options is None else options)
+
+
+# --- the image -----------------------------------------------------------------------
+
+
+def panorama_gray(image: NDArray, name: str = "image") -> NDArray[np.uint8]:
+    """The panorama's brightness as 8-bit grey, the detector's input.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, 2H) or (H, 2H, C)
+        uint8, uint16, float32 or float64; ``C`` in 1..4 (grey, grey + alpha, RGB, RGBA;
+        alpha is ignored). Floats are taken as ``[0, 1]``; a float image brighter than 1
+        (high dynamic range) is scaled so that its 99.5th percentile is 1.
+    name : str
+        What messages call the image.
+
+    Returns
+    -------
+    ndarray of uint8, shape (h, 2h)
+        ``h = min(H, DETECT_WIDTH / 2)``: a wider panorama is reduced to :data:`DETECT_WIDTH`.
+
+    Raises
+    ------
+    ImageError
+        If the image is not a panorama the toolkit reads, or smaller than ``64 x 32``.
+    """
+    check_panorama(image, name)
+    if image.shape[0] < MIN_HEIGHT:
+        raise ImageError(
+            f"{name}: {image.shape[1]} x {image.shape[0]} is too small to find lines in (at least {2 * MIN_HEIGHT} x {MIN_HEIGHT})"
+        )
+    if image.shape[1] > DETECT_WIDTH:
+        import cv2
+
+        image = cv2.resize(image, (DETECT_WIDTH, DETECT_WIDTH // 2), interpolation=cv2.INTER_AREA)
+    if image.ndim == 3 and image.shape[2] >= 3:
+        rgb = image[..., :3]
+        gray = 0.299 * rgb[..., 0].astype(np.float32) + 0.587 * rgb[..., 1] + 0.114 * rgb[..., 2]
+    else:
+        gray = (image[..., 0] if image.ndim == 3 else image).astype(np.float32)
+    if image.dtype == np.uint8:
+        full = 255.0
+    elif image.dtype == np.uint16:
+        full = 65535.0
+    else:
+        top = float(np.percentile(gray, 99.5)) if gray.size else 1.0
+        full = top if top > 1.0 else 1.0
+    return np.clip(np.rint(gray * np.float32(255.0 / full)), 0, 255).astype(np.uint8)
+
+
+# --- the views -----------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class View:
+    """A perspective view of the sphere: ``ray(x, y) = focal * forward + (x - c) * right + (y - c) * down``, ``c = (size - 1) / 2``.
+
+    Attributes
+    ----------
+    forward, right, down : ndarray of float64, shape (3,)
+        Orthonormal camera axes, unit vectors in the panorama's frame.
+    size : int
+        Width and height of the square view, pixels.
+    focal : float
+        Focal length, pixels.
+    """
+
+    forward: FloatArray
+    right: FloatArray
+    down: FloatArray
+    size: int
+    focal: float
+
+    def rays(self, xy: NDArray) -> FloatArray:
+        """Unit direction vectors of view pixels ``(x, y)``, shape (..., 2) -> (..., 3)."""
+        xy = np.asarray(xy, dtype=np.float64)
+        c = (self.size - 1) / 2
+        d = self.focal * self.forward + (xy[..., :1] - c) * self.right + (xy[..., 1:2] - c) * self.down
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+def cube_views(width: int, half_angle: float = VIEW_HALF_ANGLE) -> list[View]:
+    """The six cube-face views of a panorama of width ``width``, widened to ``2 * half_angle`` degrees.
+
+    The focal length matches the panorama's resolution at the equator (``width / 2π``
+    pixels per radian), so a view neither loses nor invents detail at its centre.
+
+    Returns
+    -------
+    list of View
+        Forward along +x, +y, -x, -y (longitudes 0, 90, 180, -90), then +z and -z.
+    """
+    focal = width / (2 * math.pi)
+    size = int(math.ceil(2 * focal * math.tan(math.radians(half_angle))))
+    z = np.array([0.0, 0.0, 1.0])
+    views = []
+    for lon in (0.0, 90.0, 180.0, -90.0):
+        forward = coords.lonlat_to_xyz([lon, 0.0])
+        right = coords.lonlat_to_xyz([lon + 90.0, 0.0])
+        views.append(View(forward, right, -z, size, focal))
+    x, y = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    views.append(View(z, y, x, size, focal))  # looking up: +y to the right, +x down
+    views.append(View(-z, y, -x, size, focal))  # looking down
+    return views
+
+
+def render_view(gray: NDArray[np.uint8], view: View) -> NDArray[np.uint8]:
+    """Resample the panorama into one perspective view (bilinear, ``cv2.remap``), seamlessly across ±180°.
+
+    Parameters
+    ----------
+    gray : ndarray of uint8, shape (H, 2H)
+    view : View
+
+    Returns
+    -------
+    ndarray of uint8, shape (view.size, view.size)
+    """
+    h, w = gray.shape
+    import cv2  # OpenCV loads with the first detection, not with the package
+
+    grid = np.mgrid[0 : view.size, 0 : view.size][::-1].transpose(1, 2, 0)  # (y, x) planes -> (x, y)
+    px = coords.lonlat_to_px(coords.xyz_to_lonlat(view.rays(grid)), w)
+    # columns wrap: x in [0, w), and column w (the copy of column 0) closes the seam
+    map_x = np.mod(px[..., 0], w).astype(np.float32)
+    map_y = np.clip(px[..., 1], 0, h - 1).astype(np.float32)
+    wrapped = np.concatenate([gray, gray[:, :1]], axis=1)
+    return np.asarray(cv2.remap(wrapped, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE), dtype=np.uint8)
+
+
+# --- detection and lifting -----------------------------------------------------------
+
+
+def detect_segments(view_image: NDArray[np.uint8], detector: str = "lsd") -> tuple[FloatArray, FloatArray]:
+    """Straight segments in one view, and the brightness step across each.
+
+    Parameters
+    ----------
+    view_image : ndarray of uint8, shape (n, n)
+    detector : {"lsd", "hough"}
+        OpenCV's line segment detector, or scikit-image's Canny edges and probabilistic
+        Hough transform (kept for comparison).
+
+    Returns
+    -------
+    segments : ndarray of float64, shape (k, 4)
+        ``x1, y1, x2, y2`` in view pixels, each at least :data:`MIN_SEGMENT_PX` long.
+    contrast : ndarray of float64, shape (k,)
+        Mean absolute brightness difference between the two sides, in ``[0, 1]``.
+    """
+    import cv2
+
+    if detector == "lsd":
+        lsd = cv2.createLineSegmentDetector(cv2.LSD_REFINE_STD, LSD_SCALE, 0.6, 2.0, LSD_ANGLE)
+        found = lsd.detect(view_image)[0]
+        segments = np.empty((0, 4)) if found is None else found.reshape(-1, 4).astype(np.float64)
+    elif detector == "hough":
+        from skimage.feature import canny
+        from skimage.transform import probabilistic_hough_line
+
+        edges = canny(view_image.astype(np.float64) / 255.0, sigma=1.5, low_threshold=0.05, high_threshold=0.12)
+        found_h = probabilistic_hough_line(edges, threshold=10, line_length=int(MIN_SEGMENT_PX * 2), line_gap=2, rng=0)
+        segments = np.array([[p[0], p[1], q[0], q[1]] for p, q in found_h], dtype=np.float64).reshape(-1, 4)
+    else:
+        raise ValueError(f"detector must be 'lsd' or 'hough', got {detector!r}")
+    lengths = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+    segments = segments[lengths >= MIN_SEGMENT_PX]
+    return segments, _contrast(view_image, segments)
+
+
+def _contrast(view_image: NDArray[np.uint8], segments: FloatArray, samples: int = 9, offset: float = 2.0) -> FloatArray:
+    """Mean ``|I(left) - I(right)|`` / 255 at ``samples`` points along each segment, ``offset`` pixels to each side."""
+    if len(segments) == 0:
+        return np.empty(0)
+    import cv2
+
+    p, q = segments[:, None, :2], segments[:, None, 2:]
+    t = np.linspace(0.1, 0.9, samples)[None, :, None]
+    along = p + t * (q - p)
+    direction = (q - p) / np.linalg.norm(q - p, axis=-1, keepdims=True)
+    normal = np.concatenate([-direction[..., 1:], direction[..., :1]], axis=-1)
+    sides = []
+    for sign in (1.0, -1.0):
+        at = (along + sign * offset * normal).astype(np.float32)
+        sides.append(cv2.remap(view_image, at[..., 0], at[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).astype(np.float64))
+    return np.abs(sides[0] - sides[1]).mean(axis=1) / 255.0
+
+
+def lift_segments(segments: FloatArray, view: View) -> tuple[FloatArray, FloatArray]:
+    """Endpoints of view segments as unit vectors on the sphere: ``(a, b)``, each shape (k, 3)."""
+    return view.rays(segments[:, :2]), view.rays(segments[:, 2:])
+
+
+# --- merging -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Arc:
+    """A merged great-circle arc, unit vectors ``start`` and ``end``, and what supports it.
+
+    Attributes
+    ----------
+    start, end : ndarray of float64, shape (3,)
+    contrast : float
+        Length-weighted mean contrast of its pieces.
+    coverage : float
+        Share of its extent covered by detected pieces, in ``[0, 1]``.
+    pieces : int
+        How many detected segments it merges.
+    """
+
+    start: FloatArray
+    end: FloatArray
+    contrast: float
+    coverage: float
+    pieces: int
+
+    @property
+    def length(self) -> float:
+        """Degrees."""
+        return math.degrees(math.atan2(float(np.linalg.norm(np.cross(self.start, self.end))), float(self.start @ self.end)))
+
+
+def _unit(v: NDArray) -> NDArray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def merge_arcs(
+    a: FloatArray,
+    b: FloatArray,
+    contrast: FloatArray,
+    *,
+    distance: float = MERGE_DISTANCE,
+    gap: float = MERGE_GAP,
+    polarity: bool = True,
+) -> list[Arc]:
+    """Merge arcs of one great circle whose extents overlap or nearly touch into one arc each.
+
+    Greedy, longest first: the longest arc not yet taken seeds a cluster; every arc of the
+    same polarity (the detector orients each segment by the side that is darker, so the
+    arc's normal ``a x b`` tells the side) whose endpoints and midpoint lie within
+    ``distance`` degrees of the cluster's great circle and whose extent along it comes within ``gap`` degrees of the cluster's joins it; the
+    circle is refitted to all members' points (the smallest eigenvector of their scatter,
+    weighted by length) and the search repeats until nothing joins.
+
+    Parameters
+    ----------
+    a, b : ndarray of float64, shape (k, 3)
+        Unit vectors of the arcs' endpoints.
+    contrast : ndarray of float64, shape (k,)
+    distance, gap : float
+        Degrees.
+    polarity : bool
+        Merge only arcs of the same polarity (False: any).
+
+    Returns
+    -------
+    list of Arc
+        Oriented like their members, ``start x end`` along the members' normals.
+    """
+    k = len(a)
+    if k == 0:
+        return []
+    mid = _unit(a + b)
+    length = np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0))
+    sample_t = np.linspace(0.0, 1.0, 5)
+    samples = _unit(a[:, None, :] * (1 - sample_t)[None, :, None] + b[:, None, :] * sample_t[None, :, None])  # (k, 5, 3) chords, normalised
+    sin_d = math.sin(math.radians(distance))
+    gap_r = math.radians(gap)
+    free = np.ones(k, dtype=bool)
+    out: list[Arc] = []
+    for seed in np.argsort(-length):
+        if not free[seed]:
+            continue
+        members = np.zeros(k, dtype=bool)
+        members[seed] = True
+        free[seed] = False
+        normal = _unit(np.cross(a[seed], b[seed]))
+        origin = a[seed]
+        lo, hi = 0.0, float(length[seed])
+        for _ in range(4):
+            cand = np.flatnonzero(free)
+            if cand.size == 0:
+                break
+            near = (np.abs(a[cand] @ normal) < sin_d) & (np.abs(b[cand] @ normal) < sin_d) & (np.abs(mid[cand] @ normal) < sin_d)
+            if polarity:  # the same polarity: the dark side on the same side
+                near &= np.cross(a[cand], b[cand]) @ normal > 0
+            cand = cand[near]
+            if cand.size == 0:
+                break
+            other = np.cross(normal, origin)
+            ta = np.arctan2(a[cand] @ other, a[cand] @ origin)
+            tb = np.arctan2(b[cand] @ other, b[cand] @ origin)
+            c_lo, c_hi = np.minimum(ta, tb), np.maximum(ta, tb)
+            joins = (c_lo <= hi + gap_r) & (c_hi >= lo - gap_r) & (c_hi - c_lo < math.pi)
+            joins &= np.maximum(hi, c_hi) - np.minimum(lo, c_lo) < MAX_ARC  # an arc is the shorter way between its ends
+            if not joins.any():
+                break
+            new = cand[joins]
+            members[new] = True
+            free[new] = False
+            lo, hi = min(lo, float(c_lo[joins].min())), max(hi, float(c_hi[joins].max()))
+            normal = _refit(samples[members], length[members], normal)
+            origin = _unit(origin - (origin @ normal) * normal)
+        out.append(_finish(a[members], b[members], length[members], contrast[members], normal, origin))
+    return out
+
+
+def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap: float = 0.5) -> list[Arc]:
+    """Replace the two borders of each painted band or thin dark (or light) line by its midline.
+
+    A thin line a few pixels wide is found as two parallel edges of opposite polarity, a
+    little apart. Pairs of arcs of opposite polarity whose points lie within ``distance``
+    degrees of each other's great circles and whose extents overlap by at least ``overlap``
+    of the shorter become one arc along the bisecting great circle, over the union of
+    their extents. Arcs without such a partner are kept as they are.
+
+    Parameters
+    ----------
+    arcs : sequence of Arc
+        From :func:`merge_arcs` (oriented).
+    distance : float
+        Degrees.
+    overlap : float
+        Share of the shorter arc, in ``[0, 1]``.
+
+    Returns
+    -------
+    list of Arc
+    """
+    k = len(arcs)
+    if k == 0:
+        return []
+    a = np.array([arc.start for arc in arcs])
+    b = np.array([arc.end for arc in arcs])
+    normal = _unit(np.cross(a, b))
+    mid = _unit(a + b)
+    length = np.array([arc.length for arc in arcs])
+    sin_d = math.sin(math.radians(distance))
+    taken = np.zeros(k, dtype=bool)
+    out: list[Arc] = []
+    for i in np.argsort(-length):
+        if taken[i]:
+            continue
+        taken[i] = True
+        cand = np.flatnonzero(~taken & (normal @ normal[i] < 0))
+        near = (np.abs(a[cand] @ normal[i]) < sin_d) & (np.abs(b[cand] @ normal[i]) < sin_d) & (np.abs(mid[cand] @ normal[i]) < sin_d)
+        near &= (np.abs(normal[cand] @ a[i]) < sin_d) & (np.abs(normal[cand] @ b[i]) < sin_d)
+        cand = cand[near]
+        best, best_overlap = -1, 0.0
+        other = np.cross(normal[i], a[i])
+        for j in cand:
+            ta = math.atan2(float(a[j] @ other), float(a[j] @ a[i]))
+            tb = math.atan2(float(b[j] @ other), float(b[j] @ a[i]))
+            shared = min(max(ta, tb), math.radians(length[i])) - max(min(ta, tb), 0.0)
+            share = shared / math.radians(min(length[i], length[j]))
+            if share >= overlap and share > best_overlap:
+                best, best_overlap = int(j), share
+        if best < 0:
+            out.append(arcs[i])
+            continue
+        taken[best] = True
+        bisector = _unit(normal[i] - normal[best])
+        origin = _unit(a[i] - (a[i] @ bisector) * bisector)
+        pair = np.array([i, best])
+        ends_a = np.array([a[i], b[best]])  # b of the opposite arc runs the same way as a of this one
+        ends_b = np.array([b[i], a[best]])
+        merged = _finish(ends_a, ends_b, length[pair], np.array([arcs[i].contrast, arcs[best].contrast]), bisector, origin)
+        coverage = max(arcs[i].coverage * length[i], arcs[best].coverage * length[best]) / max(merged.length, 1e-9)
+        out.append(Arc(merged.start, merged.end, merged.contrast, min(1.0, coverage), arcs[i].pieces + arcs[best].pieces))
+    return out
+
+
+def _refit(points: NDArray, weights: NDArray, previous: FloatArray) -> FloatArray:
+    """The unit normal of the great circle best through ``points`` (k, s, 3), weighted per arc, signed like ``previous``."""
+    flat = points.reshape(-1, 3)
+    w = np.repeat(weights / points.shape[1], points.shape[1])
+    scatter = (flat * w[:, None]).T @ flat
+    normal = np.linalg.eigh(scatter)[1][:, 0]
+    return normal if normal @ previous >= 0 else -normal
+
+
+def _finish(a: NDArray, b: NDArray, length: NDArray, contrast: NDArray, normal: FloatArray, origin: FloatArray) -> Arc:
+    """The merged arc: the members' extent projected on the fitted circle, and its support."""
+    other = np.cross(normal, origin)
+    ta = np.arctan2(a @ other, a @ origin)
+    tb = np.arctan2(b @ other, b @ origin)
+    lo_each, hi_each = np.minimum(ta, tb), np.maximum(ta, tb)
+    lo, hi = float(lo_each.min()), float(hi_each.max())
+    # covered share of [lo, hi]: the union of the members' intervals
+    order = np.argsort(lo_each)
+    covered, reach = 0.0, lo
+    for i in order:
+        start, stop = max(float(lo_each[i]), reach), float(hi_each[i])
+        if stop > start:
+            covered += stop - start
+            reach = stop
+    span = hi - lo
+    start_v = math.cos(lo) * origin + math.sin(lo) * other
+    end_v = math.cos(hi) * origin + math.sin(hi) * other
+    weight = np.maximum(length, 1e-12)
+    return Arc(
+        start=start_v,
+        end=end_v,
+        contrast=float(np.sum(contrast * weight) / np.sum(weight)),
+        coverage=float(min(1.0, covered / span)) if span > 0 else 1.0,
+        pieces=len(a),
+    )
+
+
+# --- the suggestions -----------------------------------------------------------------
+
+
+def _confidence(length: float, contrast: float, coverage: float) -> float:
+    """In ``[0, 1]``: saturating in length (degrees) and contrast, times the covered share."""
+    return float((1.0 - math.exp(-length / 15.0)) * min(1.0, contrast / 0.15) * coverage)
+
+
+def suggest_lines(
+    image: NDArray,
+    *,
+    max_lines: int | None = 40,
+    min_length: float = 4.0,
+    min_contrast: float = 0.04,
+    detector: str = "lsd",
+    views: Sequence[View] | None = None,
+) -> list[Suggestion]:
+    """Suggest line handles along the straight 3D edges seen in a panorama.
+
+    Segments are detected in six overlapping perspective views (:func:`cube_views`),
+    lifted to great-circle arcs and merged across views into one arc per edge
+    (:func:`merge_arcs`); arcs shorter than ``min_length`` or fainter than
+    ``min_contrast`` are dropped and the rest ranked by confidence (length, contrast and
+    how much of the arc the detector saw).
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, 2H) or (H, 2H, C)
+        Equirectangular panorama, uint8, uint16, float32 or float64, 1 to 4 channels; at
+        least ``64 x 32``.
+    max_lines : int or None
+        Keep at most this many, the most confident; None keeps all.
+    min_length : float
+        Shortest arc suggested, degrees, ``> 0``.
+    min_contrast : float
+        Faintest edge suggested: brightness step as a share of the full range, ``>= 0``.
+    detector : {"lsd", "hough"}
+        The 2D segment detector (:func:`detect_segments`).
+    views : sequence of View, optional
+        The perspective views; :func:`cube_views` of the image's width by default.
+
+    Returns
+    -------
+    list of Suggestion
+        Best first.
+
+    Raises
+    ------
+    ImageError
+        If ``image`` is not a usable panorama.
+    ValueError
+        If a parameter is out of range.
+    """
+    if max_lines is not None and (isinstance(max_lines, bool) or not isinstance(max_lines, int | np.integer) or max_lines < 1):
+        raise ValueError(f"max_lines must be a positive integer or None, got {max_lines!r}")
+    for name, value, positive in (("min_length", min_length, True), ("min_contrast", min_contrast, False)):
+        number = not isinstance(value, bool) and isinstance(value, int | float | np.integer | np.floating) and math.isfinite(value)
+        if not number or value < 0 or (positive and value == 0):
+            raise ValueError(f"{name} must be a {'positive' if positive else 'non-negative'} number, got {value!r}")
+    gray = panorama_gray(image)
+    arcs = find_arcs(gray, detector=detector, views=views)
+    out = []
+    for arc in arcs:
+        length = arc.length
+        if length < min_length or arc.contrast < min_contrast:
+            continue
+        (lon0, lat0), (lon1, lat1) = coords.xyz_to_lonlat(np.array([arc.start, arc.end]))
+        out.append(
+            Suggestion(
+                start=(float(lon0), float(lat0)),
+                end=(float(lon1), float(lat1)),
+                length=length,
+                contrast=arc.contrast,
+                confidence=_confidence(length, arc.contrast, arc.coverage),
+            )
+        )
+    out.sort(key=lambda s: (-s.confidence, -s.length))
+    return out if max_lines is None else out[: int(max_lines)]
+
+
+def find_arcs(gray: NDArray[np.uint8], *, detector: str = "lsd", views: Sequence[View] | None = None) -> list[Arc]:
+    """Detected segments of every view, lifted and merged: the arcs :func:`suggest_lines` ranks.
+
+    Parameters
+    ----------
+    gray : ndarray of uint8, shape (H, 2H)
+        From :func:`panorama_gray`.
+    detector : {"lsd", "hough"}
+    views : sequence of View, optional
+
+    Returns
+    -------
+    list of Arc
+    """
+    views = cube_views(gray.shape[1]) if views is None else views
+    ends_a, ends_b, contrasts = [], [], []
+    for view in views:
+        segments, contrast = detect_segments(render_view(gray, view), detector)
+        a, b = lift_segments(segments, view)
+        ends_a.append(a)
+        ends_b.append(b)
+        contrasts.append(contrast)
+    arcs = pair_bands(merge_arcs(np.concatenate(ends_a), np.concatenate(ends_b), np.concatenate(contrasts)))
+    return _merge_again(arcs)
+
+
+def _merge_again(arcs: list[Arc]) -> list[Arc]:
+    """Merge the midlines and single edges once more, whatever their polarity (pieces of one line cut at junctions)."""
+    if not arcs:
+        return arcs
+    a = np.array([arc.start for arc in arcs])
+    b = np.array([arc.end for arc in arcs])
+    contrast = np.array([arc.contrast for arc in arcs])
+    merged = merge_arcs(a, b, contrast, distance=FINAL_DISTANCE, gap=MERGE_GAP, polarity=False)
+    return snap_ends(merged)
+
+
+def snap_ends(arcs: Sequence[Arc], reach: float = SNAP_REACH) -> list[Arc]:
+    """Move each arc's ends to the junction they stop short of.
+
+    A detector stops a few pixels short of where two edges meet (the gradient turns
+    there). When another arc's great circle crosses this arc's circle within ``reach``
+    degrees of an end, and that crossing lies on (or within ``reach`` of) the other arc,
+    the end moves to the nearest such crossing: along its own circle, so the arc stays on
+    its edge.
+
+    Parameters
+    ----------
+    arcs : sequence of Arc
+    reach : float
+        Degrees.
+
+    Returns
+    -------
+    list of Arc
+    """
+    if len(arcs) < 2:
+        return list(arcs)
+    a = np.array([arc.start for arc in arcs])
+    b = np.array([arc.end for arc in arcs])
+    normal = _unit(np.cross(a, b))
+    length = np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0))
+    other = np.cross(normal, a)
+    cos_reach = math.cos(math.radians(reach))
+    reach_r = math.radians(reach)
+    out = []
+    for i, arc in enumerate(arcs):
+        ends = [arc.start, arc.end]
+        crossing = np.cross(normal[i], normal)  # (k, 3): where circle i meets each circle
+        size = np.linalg.norm(crossing, axis=1)
+        usable = size > math.sin(math.radians(10.0))  # circles that cross at a clear angle
+        usable[i] = False
+        if not usable.any():
+            out.append(arc)
+            continue
+        x = crossing[usable] / size[usable, None]
+        idx = np.flatnonzero(usable)
+        for e in range(2):
+            end = ends[e]
+            xs = x * np.where(x @ end < 0, -1.0, 1.0)[:, None]
+            close = xs @ end > cos_reach
+            t = np.arctan2(np.einsum("ij,ij->i", xs, other[idx]), np.einsum("ij,ij->i", xs, a[idx]))
+            on_other = (t > -reach_r) & (t < length[idx] + reach_r)
+            ok = close & on_other
+            if ok.any():
+                best = int(np.argmax(np.where(ok, xs @ end, -2.0)))
+                ends[e] = xs[best]
+        out.append(Arc(ends[0], ends[1], arc.contrast, arc.coverage, arc.pieces))
+    return out
