@@ -42,8 +42,9 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 sys.path.insert(0, str(REPO_ROOT / "bench"))
 
-import omniwidget as ow  # noqa: E402
 from bench_video import make_clip  # noqa: E402
+
+import omniwidget as ow  # noqa: E402
 from omniwidget.app.batch import warp_files  # noqa: E402
 from omniwidget.app.cli import DEMO_HANDLES  # noqa: E402
 from omniwidget.io.video import warp_video  # noqa: E402

@@ -1,4 +1,4 @@
-"""The command line: ``omniwidget warp``, ``omniwidget demo`` and ``omniwidget schema``.
+"""The command line: ``omniwidget warp``, ``level``, ``suggest``, ``demo`` and ``schema``.
 
 Bad input of any kind gives one line on stderr saying what and where, exit status 2, no
 traceback and no output file. Outputs are written whole (temporary file, then rename).
@@ -75,7 +75,7 @@ def _parser() -> argparse.ArgumentParser:
     warp.add_argument(
         "--dask",
         metavar="SCHEDULER",
-        help="run each file as a task on a Dask cluster: the scheduler's address (tcp://host:8786) or its scheduler file (.json); "
+        help="run each file (each time range of a video) as a task on a Dask cluster: the scheduler's address (tcp://host:8786) or its scheduler file (.json); "
         "the paths must name the same files on every worker (pip install 'omniwidget[dask]')",
     )
     warp.add_argument(
@@ -94,6 +94,38 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="write spherical-video (360°) metadata even when the input has none (the input's is always carried over)",
     )
+    video.add_argument(
+        "--segment-seconds",
+        type=float,
+        metavar="SECONDS",
+        help="with --dask: cut each video into time ranges of about this length, one task each, joined without re-encoding (default: 60)",
+    )
+
+    level = sub.add_parser(
+        "level",
+        help="level a panorama taken with a tilted camera",
+        description="Find how far the camera was from level (pitch and roll) from the vertical edges in the panorama, "
+        "and warp it by the rotation that makes them vertical, as warp does with the level handle.",
+    )
+    level.add_argument("input", type=Path, help="equirectangular image (2:1)")
+    level.add_argument("-o", "--output", type=Path, required=True, help="the levelled image (.png, .jpg, .tif, .npy)")
+    level.add_argument("--map", type=Path, help="also save the inverse map, as warp --map writes it (.npy)")
+    level.add_argument("-H", "--handles", type=Path, help="also save the rotation as a handles file (JSON: one point handle, id 'level')")
+    level.add_argument("--width", type=int, help="output width in pixels (even; default: the input's)")
+    level.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
+    level.add_argument("--fit", choices=("pad", "stretch"), help="make a non-2:1 input 2:1 first, as for warp (default: refuse it)")
+
+    suggest = sub.add_parser(
+        "suggest",
+        help="write a handles file of the straight edges found in a panorama",
+        description="Find the straight 3D edges in a panorama and write them as line handles (best first), "
+        "to edit or to warp with: omniwidget warp INPUT -H handles.json -o OUTPUT.",
+    )
+    suggest.add_argument("input", type=Path, help="equirectangular image (2:1)")
+    suggest.add_argument("-o", "--output", type=Path, required=True, help="the handles file to write (.json)")
+    suggest.add_argument("--max-lines", type=int, default=40, metavar="N", help="at most this many lines, best first (default: 40)")
+    suggest.add_argument("--level", action="store_true", help="also level the panorama: the lines, then the level handle")
+    suggest.add_argument("--fit", choices=("pad", "stretch"), help="make a non-2:1 input 2:1 first, as for warp (default: refuse it)")
 
     demo = sub.add_parser(
         "demo", help="before/after of the bundled panorama", description="Rectify lines of the bundled panorama and write a before/after."
@@ -159,12 +191,15 @@ def _cmd_warp(args: argparse.Namespace) -> None:
     if args.workers is not None and args.workers < 1:
         raise ImageError(f"--workers {args.workers}: at least one thread")
     video_only = [f"--{name}" for name in ("codec", "crf", "preset", "spherical") if getattr(args, name) not in (None, False)]
-    if any(p.suffix.lower() in _VIDEO_SUFFIXES for p in args.input) or args.output.suffix.lower() in _VIDEO_SUFFIXES:
+    videos = any(p.suffix.lower() in _VIDEO_SUFFIXES for p in args.input)
+    if args.segment_seconds is not None and not (videos and args.dask is not None):
+        raise ImageError("--segment-seconds cuts videos for a Dask cluster: give it with --dask and a video input")
+    if args.dask is not None:
+        _warp_on_dask(args, videos)
+    elif videos or args.output.suffix.lower() in _VIDEO_SUFFIXES:
         _warp_video(args)
     elif video_only:
         raise ImageError(f"{video_only[0]} is for a video input (INPUT.mp4 ... -o OUTPUT.mp4)")
-    elif args.dask is not None:
-        _warp_on_dask(args)
     elif len(args.input) == 1 and args.apply_map is None:
         _warp_one(args)
     else:
@@ -174,7 +209,7 @@ def _cmd_warp(args: argparse.Namespace) -> None:
 def _warp_one(args: argparse.Namespace) -> None:
     from ..document.handles import load_handles
     from ..errors import ImageError
-    from ..io.images import check_writable, encode_image, read_panorama, write_bytes
+    from ..io.images import check_writable, read_panorama, write_bytes
 
     (source,) = args.input
     if _same_file(args.output, source):
@@ -183,13 +218,20 @@ def _warp_one(args: argparse.Namespace) -> None:
     handles = load_handles(args.handles)
     image = read_panorama(source, args.fit)
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
+    for path, data in _warped_outputs(args, image, handles):
+        write_bytes(path, data)
+
+
+def _warped_outputs(args: argparse.Namespace, image: Any, handles: Any) -> list[tuple[Path, bytes]]:
+    """The output image (and with ``--map`` the inverse map) of ``image`` warped by ``handles``, encoded, not yet written."""
+    from ..io.images import encode_image
+
     result = _warp_quietly(image, handles, width=args.width, order=args.order)
-    # both encoded before either is written: a failure leaves no output at all
+    # all encoded before any is written: a failure leaves no output at all
     outputs = [(args.output, encode_image(args.output, result.image))]
     if args.map is not None:
         outputs.append((args.map, encode_image(args.map, result.inverse_map())))  # .npy: the float32 array as it is
-    for path, data in outputs:
-        write_bytes(path, data)
+    return outputs
 
 
 def _frame_outputs(args: argparse.Namespace) -> list[Path]:
@@ -266,8 +308,8 @@ def _warp_frames(args: argparse.Namespace) -> None:
         raise _FramesFailed(f"{len(report.failed)} of {len(args.input)} frames were not warped (see above)")
 
 
-def _warp_on_dask(args: argparse.Namespace) -> None:
-    """``--dask``: each file a task on the cluster (:func:`omniwidget.app.batch.warp_files`); the workers read and write the files."""
+def _warp_on_dask(args: argparse.Namespace, videos: bool) -> None:
+    """``--dask``: each file a task on the cluster, each video's time ranges tasks (:func:`omniwidget.app.batch.warp_files`); the workers read and write the files."""
     from ..document.handles import load_handles
     from ..errors import ImageError, OmniwidgetError
     from ..io.frames import load_map
@@ -277,17 +319,35 @@ def _warp_on_dask(args: argparse.Namespace) -> None:
         raise ImageError("--map with --dask: save the map on this machine first (omniwidget warp FRAME -H ... --map MAP.npy), then --apply-map MAP.npy")
     if args.workers is not None:
         raise ImageError("--workers sets threads on this machine; with --dask the cluster's workers run the files (dask worker --nthreads)")
-    outputs = _frame_outputs(args)
-    if len(outputs) > 1:
+    video_only = [f"--{name}" for name in ("codec", "crf", "preset", "spherical") if getattr(args, name) not in (None, False)]
+    if video_only and not videos:
+        raise ImageError(f"{video_only[0]} is for a video input (INPUT.mp4 ... -o OUTPUT.mp4)")
+    # images alone are checked here as without --dask; with a video, the batch checks each output's suffix
+    outputs: Any = _frame_outputs(args) if not videos else ([args.output] if len(args.input) == 1 else args.output)
+    if not videos and len(outputs) > 1:
         args.output.mkdir(exist_ok=True)
     handles = load_handles(args.handles) if args.handles is not None else None
     saved = load_map(args.apply_map) if args.apply_map is not None else None
     if saved is not None and args.width is not None and args.width != saved.shape[1]:
         raise ImageError(f"--width {args.width}: the map {args.apply_map} makes frames {saved.shape[1]} wide")
-    progress = _progress_bar if len(outputs) > 1 and sys.stderr.isatty() else None
+    progress = _progress_bar if len(args.input) > 1 and sys.stderr.isatty() else None
+    options: dict[str, Any] = {"codec": args.codec, "crf": args.crf, "preset": args.preset, "spherical": True if args.spherical else None}
+    if args.segment_seconds is not None:
+        if not args.segment_seconds > 0:
+            raise ImageError(f"--segment-seconds {args.segment_seconds:g}: a time range lasts more than 0 seconds")
+        options["segment_seconds"] = args.segment_seconds
     try:
         report = warp_files(
-            args.input, outputs, handles=handles, map=saved, client=args.dask, width=args.width, order=args.order, fit=args.fit, progress=progress
+            args.input,
+            outputs,
+            handles=handles,
+            map=saved,
+            client=args.dask,
+            width=args.width,
+            order=args.order,
+            fit=args.fit,
+            progress=progress,
+            **options,
         )
     except ImportError as exc:
         raise OmniwidgetError(str(exc)) from None
@@ -355,9 +415,8 @@ def _warp_video(args: argparse.Namespace) -> None:
     (source,) = args.input
     if source.suffix.lower() not in _VIDEO_SUFFIXES:
         raise ImageError(f"{args.output}: a video output needs a video input ({', '.join(_VIDEO_SUFFIXES)}), and {source} is not one")
-    for flag, value in (("--fit", args.fit), ("--dask", args.dask)):
-        if value is not None:
-            raise ImageError(f"{flag} is not for videos")
+    if args.fit is not None:
+        raise ImageError("--fit is not for videos")
     if _same_file(args.output, source):
         raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
     _check_output(args.output, OUTPUT_SUFFIXES, "output video")
@@ -406,6 +465,71 @@ def _warp_video(args: argparse.Namespace) -> None:
     )
 
 
+def _check_input_and_output(source: Path, output: Path, suffixes: Sequence[str], what: str) -> None:
+    from ..errors import ImageError
+
+    if _same_file(output, source):
+        raise ImageError(f"{output}: the output would overwrite the input; choose another file")
+    _check_output(output, suffixes, what)
+
+
+def _cmd_level(args: argparse.Namespace) -> None:
+    """``omniwidget level``: the camera's tilt from the vertical edges, undone by the level handle's rotation (as warp does)."""
+    from ..detect import level
+    from ..errors import ImageError
+    from ..io.images import check_writable, read_panorama, write_bytes
+
+    _quiet_opencv()
+    _check_input_and_output(args.input, args.output, _IMAGE_SUFFIXES, "output image")
+    for path, suffixes, what in ((args.map, (".npy",), "map file"), (args.handles, (".json",), "handles file")):
+        if path is not None:
+            _check_input_and_output(args.input, path, suffixes, what)
+    named = [p for p in (args.output, args.map, args.handles) if p is not None]
+    if len({p.resolve() for p in named}) < len(named):
+        raise ImageError("-o, --map and --handles must name different files")
+    if args.width is not None and (args.width < 2 or args.width % 2):
+        raise ImageError(f"--width {args.width}: the width must be even and at least 2")
+    image = read_panorama(args.input, args.fit)
+    check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
+    found = level(image)  # too few vertical edges: a LevelError, one line, nothing written
+    handles = found.handles()
+    outputs = _warped_outputs(args, image, handles)
+    if args.handles is not None:
+        outputs.append((args.handles, (handles.to_json() + "\n").encode()))
+    for path, data in outputs:
+        write_bytes(path, data)
+    print(
+        f"levelled {args.input.name}: pitch {found.pitch:+.2f}°, roll {found.roll:+.2f}° (tilt {found.tilt:.2f}°) "
+        f"from {len(found.edges)} vertical edges; wrote {', '.join(str(p) for p, _ in outputs)}"
+    )
+
+
+def _cmd_suggest(args: argparse.Namespace) -> None:
+    """``omniwidget suggest``: a handles file of line handles along the straight edges found (best first)."""
+    from ..detect import level, level_document, suggest_lines, suggestions_to_handles
+    from ..document.handles import Handles
+    from ..errors import ImageError
+    from ..io.images import read_panorama, write_bytes
+
+    _quiet_opencv()
+    _check_input_and_output(args.input, args.output, (".json",), "handles file")
+    if args.max_lines < 1:
+        raise ImageError(f"--max-lines {args.max_lines}: at least one line")
+    image = read_panorama(args.input, args.fit)
+    suggestions = suggest_lines(image, max_lines=None)  # all of them: --level looks among every edge, not only the best
+    handles = suggestions_to_handles(suggestions[: args.max_lines])
+    note = ""
+    if args.level:
+        found = level(image, suggestions=suggestions)  # too few vertical edges: a LevelError, nothing written
+        handles = level_document(handles, found.moebius())
+        note = f" and the level handle (pitch {found.pitch:+.2f}°, roll {found.roll:+.2f}°, from {len(found.edges)} vertical edges)"
+    text = handles.to_json() + "\n"
+    Handles.from_json(text)  # what is written is what the loader reads back
+    write_bytes(args.output, text.encode())
+    lines = sum(1 for h in handles.handles if h.kind == "line")
+    print(f"suggested {lines} line(s){note}; wrote {args.output}")
+
+
 def _cmd_demo(args: argparse.Namespace) -> None:
     import numpy as np
 
@@ -445,7 +569,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     args = _parser().parse_args(argv)
     try:
-        {"warp": _cmd_warp, "demo": _cmd_demo, "schema": _cmd_schema}[args.command](args)
+        {"warp": _cmd_warp, "level": _cmd_level, "suggest": _cmd_suggest, "demo": _cmd_demo, "schema": _cmd_schema}[args.command](args)
     except OmniwidgetError as exc:
         print(f"omniwidget {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

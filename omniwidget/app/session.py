@@ -5,12 +5,14 @@ apart from the widget: the handles document and its history (undo, redo), the au
 file, the preview computed in a worker thread after every edit (only the newest edit's
 result is ever shown), the status line, Save image, the live drag's basis, and the commands
 the front end sends. The widget only syncs its traits with it and passes messages; tests and
-scripts drive a session without anywidget.
+scripts drive a session without anywidget. Suggested lines and levelling
+(:mod:`omniwidget.detect`) run in workers of their own: the suggestions are shown until
+accepted (each an undoable edit) or dropped, and the level rotation is one undoable edit.
 
 A session tells whoever shows it what changed through ``on_change(changes)`` (a dict of the
 fields that changed: ``handles``, ``history``, ``status``, ``preview``, ``folds``,
-``outputs``; called from the worker thread for results) and sends the front end messages
-through ``on_message(content, buffers)``.
+``outputs``, ``suggestions``; called from the worker threads for results) and sends the
+front end messages through ``on_message(content, buffers)``.
 """
 
 from __future__ import annotations
@@ -32,18 +34,27 @@ from numpy.typing import NDArray
 
 from .._checks import whole_number
 from ..document.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
-from ..errors import HandlesError, ImageError, VideoError
+from ..errors import HandlesError, ImageError, OmniwidgetError, VideoError
 from ..io.draw import display_rgb
 from ..io.images import check_format, check_panorama, read_image, write_image
 from ..sphere import coords
 from ._latest import Latest
 
 if TYPE_CHECKING:
+    from ..detect import Suggestion
     from ..io.video import VideoReader, VideoReport
     from ..method.constraints import Constraints
     from ..raster.pipeline import Result
 
-__all__ = ["AUTOSAVE_SUFFIX", "DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "RESULT_SUFFIX", "EditingSession", "as_document"]
+__all__ = [
+    "AUTOSAVE_SUFFIX",
+    "DISPLAY_WIDTH",
+    "HISTORY",
+    "PREVIEW_WIDTH",
+    "RESULT_SUFFIX",
+    "EditingSession",
+    "as_document",
+]
 
 #: Width of the result computed after every edit (the issue's "about 1024 x 512").
 PREVIEW_WIDTH = 1024
@@ -283,6 +294,12 @@ def _exception_text(exc: BaseException) -> str:
     return f"{name}: {detail}" if detail else name
 
 
+def _line_key(start: Any, end: Any) -> tuple[float, ...]:
+    """A line's ends, to 1e-6 degrees and in either order: a suggestion and the handle accepted from it match."""
+    a, b = (tuple(round(float(v), 6) for v in p) for p in (start, end))
+    return (*min(a, b), *max(a, b))
+
+
 def _count(doc: Handles) -> str:
     return f"{len(doc)} handle" if len(doc) == 1 else f"{len(doc)} handles"
 
@@ -370,6 +387,9 @@ class EditingSession:
         self._worker = Latest("omniwidget-editor")
         self._quality = Latest("omniwidget-editor-quality")
         self._live = Latest("omniwidget-editor-live")
+        # suggested lines and levelling, each in a worker of its own: never in the preview's way, nor one in the other's
+        self._suggest_worker = Latest("omniwidget-editor-suggest")
+        self._level_worker = Latest("omniwidget-editor-level")
         self._measure = bool(quality)
         self._undo: list[dict] = []
         self._redo: list[dict] = []
@@ -409,6 +429,11 @@ class EditingSession:
         self._video_cancel: threading.Event | None = None
         self._video_error: BaseException | None = None
         self._video_report: VideoReport | None = None
+        self._suggested: list[Suggestion] = []  # the last suggest_lines, best first; shown unless accepted or dropped
+        self._dropped: set[int] = set()
+        self.suggestions: list[dict] = []
+        self._levelling = False
+        self._detect_errors: dict[str, BaseException | None] = {"suggest": None, "level": None}  # for wait=True
 
     def start(self) -> None:
         """Compute the first result (in the worker)."""
@@ -498,7 +523,8 @@ class EditingSession:
             self._scaled = {}
             self._preview_source = self._downscaled(2 * self._preview_width)
             self._full_result = None
-        self._publish(frame=index, source=self.display_source())
+            self._suggested, self._dropped = [], set()  # found on the frame shown before
+        self._publish(frame=index, source=self.display_source(), suggestions=[])
         self._changed(self.document)
 
     @property
@@ -529,6 +555,8 @@ class EditingSession:
             del self._undo[:-HISTORY]
             self._redo.clear()
         self._publish(handles=new)
+        if self._suggested:
+            self._publish(suggestions=self._shown_suggestions(doc))
         self._changed(doc)  # the preview starts first; the autosave is written meanwhile
         self._autosave(doc)
 
@@ -673,8 +701,9 @@ class EditingSession:
         return dict(self.status)
 
     def idle(self, timeout: float | None = 120.0) -> bool:
-        """Block until the preview, the quality figures and the live drag's basis are all done; False on timeout."""
-        return all(worker.wait(timeout) for worker in (self._worker, self._quality, self._live))
+        """Block until the preview, the quality figures, the live drag's basis, Suggest lines and Level are all done; False on timeout."""
+        workers = (self._worker, self._quality, self._live, self._suggest_worker, self._level_worker)
+        return all(worker.wait(timeout) for worker in workers)
 
     @property
     def result(self) -> Result:
@@ -889,6 +918,175 @@ class EditingSession:
             ),
         )
 
+    # --- suggested lines and levelling (omniwidget.detect) ---------------------------------
+    def _detect_source(self) -> NDArray:
+        """The panorama the detector looks at (:data:`~omniwidget.detect.DETECT_WIDTH` wide at most, as it would reduce it): kept, made once."""
+        from ..detect import DETECT_WIDTH
+
+        with self._lock:
+            return self._downscaled(DETECT_WIDTH)
+
+    def _set_detect(self, job: str, **fields: Any) -> None:
+        """``status[job]`` (``"suggest"`` or ``"level"``): its ``state`` ("running", "done" or "error") and ``message``."""
+        with self._lock:
+            self._set_status(**{job: fields})
+
+    def _shown_suggestions(self, doc: Handles | None = None) -> list[dict]:
+        """The suggestions not dropped and not in the document (as line handles), JSON-ready; ``key`` names one."""
+        doc = self.document if doc is None else doc
+        lines = {_line_key(h.start, h.end) for h in doc.handles if isinstance(h, LineHandle)}
+        shown = []
+        for key, s in enumerate(self._suggested):
+            if key in self._dropped or _line_key(s.start, s.end) in lines:
+                continue
+            shown.append(
+                {
+                    "key": key,
+                    "start": [float(v) for v in s.start],
+                    "end": [float(v) for v in s.end],
+                    "length": round(float(s.length), 3),
+                    "confidence": round(float(s.confidence), 3),
+                }
+            )
+        return shown
+
+    def _wait_detect(self, job: str, worker: Latest, wait: bool) -> None:
+        if wait:
+            worker.wait(None)
+            error = self._detect_errors[job]
+            if error is not None:
+                raise error
+
+    def suggest_lines(self, *, max_lines: int = 40, wait: bool = False) -> None:
+        """Find straight edges in the panorama (:func:`omniwidget.detect.suggest_lines`) in the background and show them.
+
+        The suggestions (:attr:`suggestions`, drawn dashed on the input) replace any shown
+        before; none is a handle until accepted (:meth:`accept_suggestion`,
+        :meth:`accept_all_suggestions`). :attr:`status` ``["suggest"]`` follows the job:
+        ``state`` ("running", "done" or "error") and ``message``.
+
+        Parameters
+        ----------
+        max_lines : int
+            At most this many suggestions, best first.
+        wait : bool
+            Block until they are found, and raise the detector's error, for scripts.
+        """
+        max_lines = whole_number(max_lines, "max_lines", minimum=1)
+        self._detect_errors["suggest"] = None
+        self._set_detect("suggest", state="running", message="finding straight edges...")
+        self._suggest_worker.submit(lambda: self._suggest_job(max_lines))
+        self._wait_detect("suggest", self._suggest_worker, wait)
+
+    def _suggest_job(self, max_lines: int) -> None:
+        from ..detect import suggest_lines
+
+        start = time.perf_counter()
+        try:
+            found = suggest_lines(self._detect_source(), max_lines=max_lines)
+        except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
+            self._detect_errors["suggest"] = self.last_error = exc
+            reason = str(exc) if isinstance(exc, OmniwidgetError) else _exception_text(exc)
+            self._set_detect("suggest", state="error", message=f"could not suggest lines: {reason}")
+            return
+        seconds = time.perf_counter() - start
+        self._suggested, self._dropped = list(found), set()
+        shown = self._shown_suggestions()
+        self._publish(suggestions=shown)
+        what = "click one to accept it, Accept all, or Drop them" if shown else "none found"
+        self._set_detect("suggest", state="done", count=len(shown), message=f"{len(shown)} suggested lines in {seconds:.2f} s: {what}")
+
+    def _suggestion(self, key: Any) -> Suggestion:
+        shown = {s["key"] for s in self.suggestions}
+        if isinstance(key, bool) or not isinstance(key, (int, np.integer)) or int(key) not in shown:
+            raise IndexError(f"suggestion {key!r} is not shown (accepted or dropped already, or suggested before the last Suggest lines)")
+        return self._suggested[int(key)]
+
+    def accept_suggestion(self, key: int) -> None:
+        """Add the suggestion ``key`` (its ``key`` in :attr:`suggestions`) as a line handle: one undoable edit."""
+        line = self._suggestion(key).handle()
+        self._edit(lambda items: items.append(line))
+
+    def accept_all_suggestions(self) -> int:
+        """Add every suggestion shown as line handles, in one undoable edit; return how many."""
+        lines = [self._suggested[s["key"]].handle() for s in self.suggestions]
+        if lines:
+            self._edit(lambda items: items.extend(lines))
+        return len(lines)
+
+    def drop_suggestions(self, key: int | None = None) -> None:
+        """Stop showing the suggestion ``key``, or all of them (no edit: they were no handles)."""
+        if key is None:
+            self._dropped = set(range(len(self._suggested)))
+        else:
+            self._suggestion(key)
+            self._dropped.add(int(key))
+        self._publish(suggestions=self._shown_suggestions())
+
+    def level(self, *, wait: bool = False, answer: bool = False) -> None:
+        """Level the panorama: find the camera's tilt (:func:`omniwidget.detect.level`) in the background and undo it.
+
+        The rotation is applied as one undoable edit (:func:`omniwidget.detect.level_document`:
+        the point handle ``"level"`` added or replaced, the other handles carried), on the
+        handles as they are when it is found. Too few vertical edges: the status says so
+        (``status["error"]`` and ``status["level"]``) and nothing changes.
+
+        Parameters
+        ----------
+        wait : bool
+            Block until it is applied, and raise its error (a :class:`~omniwidget.errors.LevelError`), for scripts.
+        answer : bool
+            Tell the front end ``{"done": "level"}`` once the handles changed (or did not).
+
+        Raises
+        ------
+        OmniwidgetError
+            If the panorama is being levelled already.
+        """
+        with self._lock:
+            if self._levelling:
+                raise OmniwidgetError("the panorama is being levelled already; one moment")
+            self._levelling = True
+        self._detect_errors["level"] = None
+        self._set_detect("level", state="running", message="levelling: finding the vertical edges...")
+        self._level_worker.submit(lambda: self._level_job(answer))
+        self._wait_detect("level", self._level_worker, wait)
+
+    def _level_job(self, answer: bool) -> None:
+        from ..detect import level, level_document
+
+        start = time.perf_counter()
+        try:
+            try:
+                found = level(self._detect_source())
+                seconds = time.perf_counter() - start
+                rotation = found.moebius()
+                for _ in range(3):  # on the handles as they are: an edit made while level_document ran is never undone
+                    base = self.handles
+                    levelled = level_document(Handles.from_dict(base), rotation)
+                    if self.handles == base:
+                        self.edit(levelled)
+                        break
+                else:
+                    raise OmniwidgetError("the handles kept changing while the rotation was applied to them; click Level again")
+            except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
+                self._detect_errors["level"] = self.last_error = exc
+                reason = str(exc) if isinstance(exc, OmniwidgetError) else _exception_text(exc)
+                message = f"could not level the panorama: {reason}; the handles are unchanged"
+                self._set_detect("level", state="error", message=message)
+                self._report_error(message)
+                return
+            message = (
+                f"levelled: pitch {found.pitch:+.2f}°, roll {found.roll:+.2f}° from {len(found.edges)} vertical edges "
+                f"found in {seconds:.2f} s (undo to take it back)"
+            )
+            pitch, roll = round(float(found.pitch), 4), round(float(found.roll), 4)
+            self._set_detect("level", state="done", message=message, pitch=pitch, roll=roll, edges=len(found.edges))
+        finally:
+            self._levelling = False
+            if answer:
+                self._on_message({"done": "level"}, [])
+
     # --- edits -----------------------------------------------------------------------------
     def undo(self) -> bool:
         """Go back one edit; False when there is none."""
@@ -1009,6 +1207,8 @@ class EditingSession:
             return
         op = content.get("op")
         index: Any = content.get("index")  # checked by the methods, as every value of the front end
+        key: Any = content.get("key")
+        answered = False
         try:
             if op == "undo":
                 self.undo()
@@ -1038,6 +1238,17 @@ class EditingSession:
                 self.cancel_video()
             elif op == "frame":
                 self.set_frame(content.get("frame"))
+            elif op == "suggest":
+                self.suggest_lines()
+            elif op == "accept_suggestion":
+                self.accept_suggestion(key)
+            elif op == "accept_all":
+                self.accept_all_suggestions()
+            elif op == "drop_suggestions":
+                self.drop_suggestions(key)
+            elif op == "level":
+                self.level(answer=True)
+                answered = True  # {"done": "level"} once the rotation is applied
             elif op == "save":
                 path = self.save()
                 self._set_status(message=f"saved {len(self.document)} handles to {path}")
@@ -1053,4 +1264,5 @@ class EditingSession:
         except Exception as exc:  # noqa: BLE001 - a person's click: show it, keep the handles
             self._report_error(str(exc) if isinstance(exc, HandlesError) else f"{type(exc).__name__}: {exc}")
         finally:  # after the handles it changed: the browser starts no edit from the handles before it
-            self._on_message({"done": op}, [])
+            if not answered:
+                self._on_message({"done": op}, [])

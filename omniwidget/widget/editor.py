@@ -154,6 +154,10 @@ class Editor(anywidget.AnyWidget):
         by side.
     selected : int
         Index of the selected handle, -1 for none.
+    suggestions : list
+        The suggested lines shown dashed on the input (:meth:`suggest_lines`), best first:
+        ``key`` (to accept or drop it), ``start`` and ``end`` ``[lon, lat]``, ``length``
+        (degrees) and ``confidence`` (0 to 1); an accepted or dropped one leaves the list.
     outputs : list
         For each handle, where its control points are in the shown result, ``[lon, lat]``
         (a point: centre and arrow tips; a line: start, middle, end; a cage: its vertices);
@@ -170,7 +174,8 @@ class Editor(anywidget.AnyWidget):
         the sphere shown turned over), ``seconds`` and ``width`` of the last computation;
         for a video, ``video`` once Save video was asked for: ``state`` ("map", "running",
         "done", "cancelled" or "error"), ``done`` and ``total`` frames, ``fps``, ``path``
-        and ``message``.
+        and ``message``; ``suggest`` and ``level`` once asked for: ``state`` ("running",
+        "done" or "error") and ``message``.
     autosave_path : Path or None
         The autosave file (see ``autosave``), None when autosave is off.
     last_error : BaseException or None
@@ -201,6 +206,7 @@ class Editor(anywidget.AnyWidget):
     frame = traitlets.Int(0).tag(sync=True)
     frame_count = traitlets.Int(0).tag(sync=True)
     frame_interval = traitlets.Float(0.0).tag(sync=True)
+    suggestions: traitlets.List[dict] = traitlets.List().tag(sync=True)
 
     def __init__(
         self,
@@ -239,6 +245,7 @@ class Editor(anywidget.AnyWidget):
             frame=s.frame,
             frame_count=s.frame_count,
             frame_interval=s.frame_interval,
+            suggestions=s.suggestions,
         )
         self.on_msg(lambda _widget, content, _buffers: self._session.command(content))
         self._ready = True
@@ -351,6 +358,26 @@ class Editor(anywidget.AnyWidget):
     def wait_video(self, timeout: float | None = None):  # noqa: ANN201 - VideoReport or None
         """Block until the video being saved is written, failed or cancelled; its report (None unless written)."""
         return self._session.wait_video(timeout)
+
+    def suggest_lines(self, *, max_lines: int = 40, wait: bool = False) -> None:
+        """Find straight edges in the background and show them dashed on the input (:meth:`EditingSession.suggest_lines`)."""
+        self._session.suggest_lines(max_lines=max_lines, wait=wait)
+
+    def accept_suggestion(self, key: int) -> None:
+        """Add the suggestion ``key`` as a line handle: one undoable edit."""
+        self._session.accept_suggestion(key)
+
+    def accept_all_suggestions(self) -> int:
+        """Add every suggestion shown as line handles in one undoable edit; return how many."""
+        return self._session.accept_all_suggestions()
+
+    def drop_suggestions(self, key: int | None = None) -> None:
+        """Stop showing the suggestion ``key``, or all of them."""
+        self._session.drop_suggestions(key)
+
+    def level(self, *, wait: bool = False) -> None:
+        """Level the panorama in the background: its tilt undone as one undoable edit (:meth:`EditingSession.level`)."""
+        self._session.level(wait=wait)
 
     def undo(self) -> bool:
         """Go back one edit; False when there is none."""

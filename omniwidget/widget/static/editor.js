@@ -6,9 +6,9 @@
 // tested by node --test (tests/js): the sphere (sphere.js), the handles' control points and
 // arcs (handles.js), the view of the panorama on a canvas, which wraps across the ±180° seam
 // (view.js), hit testing (hit.js), the edits of the handles document (edits.js), the
-// handles' Möbius maps (moebius.js) and a video's frame label and Save video's status line
-// (video.js). This file holds the DOM: the one state object, the
-// canvases, the events, and the messages to and from the kernel.
+// handles' Möbius maps (moebius.js), a video's frame label and Save video's status line
+// (video.js), and the suggested lines a click accepts (suggest.js). This file holds the
+// DOM: the one state object, the canvases, the events, and the messages to and from the kernel.
 //
 // Drags happen here at display frame rate; only their end reaches the kernel, as a new
 // handles document or a command ({op: ...}) the kernel applies (undo, rectify, arrows).
@@ -23,6 +23,7 @@ import { HIT, hitTest, onCurve, pointDistance } from "./hit.js";
 import { createLive, MOVING_PIXELS } from "./live.js";
 import { dragMaps, inverse } from "./moebius.js";
 import { geodesic } from "./sphere.js";
+import { detectRunning, detectStatusText, suggestionArc, suggestionAt } from "./suggest.js";
 import { frameLabel, videoRunning, videoStatusText } from "./video.js";
 import { copies, fitView, panBy, screenPath, screenToLonLat, toScreen, zoomAt } from "./view.js";
 
@@ -32,8 +33,17 @@ import { copies, fitView, panBy, screenPath, screenToLonLat, toScreen, zoomAt } 
 /** @typedef {import("./edits.js").Drag} Drag */
 
 const LIVE_REST_MS = 120; // the mouse this long at rest: the live frame is drawn in full
-const COLORS = { point: "#22c7ff", line: "#ff453a", cage: "#ffffff", selected: "#ffd60a", conflict: "#ff9f0a", kept: "#30d158" };
-const DASHES = { conflict: [6, 4], kept: [10, 4, 2, 4] }; // a line kept as it is (over a pole): dash-dot
+const COLORS = {
+  point: "#22c7ff",
+  line: "#ff453a",
+  cage: "#ffffff",
+  selected: "#ffd60a",
+  conflict: "#ff9f0a",
+  kept: "#30d158",
+  suggestion: "#bf5af2",
+};
+// a line kept as it is (over a pole): dash-dot; a suggested line, not yet a handle: long dashes
+const DASHES = { conflict: [6, 4], kept: [10, 4, 2, 4], suggestion: [8, 5] };
 const IMAGES = ["source", "preview", "folds"]; // the images the kernel sends
 const TOOLS = [
   ["select", "Select", "V", "select, move, pan"],
@@ -56,7 +66,7 @@ const SHORTCUTS = [
   ["Ctrl+Z / Ctrl+Shift+Z", "undo / redo (also Ctrl+Y)"],
   ["Delete, Backspace", "delete the selected handle"],
   ["Enter, double-click", "close the cage being drawn"],
-  ["Esc", "cancel the handle being drawn, the drag in progress or this help; else back to the notebook"],
+  ["Esc", "cancel the handle being drawn, the drag in progress or this help; else drop the suggested lines; else back to the notebook"],
   ["wheel", "zoom about the cursor"],
   ["Space + drag, middle drag", "pan (wraps across the ±180° seam)"],
   ["F", "fit the panorama to the view"],
@@ -69,9 +79,10 @@ const SHORTCUTS = [
 // A command the kernel is still applying may change the handles (undo, rectify, load, ...):
 // an edit made meanwhile would start from the handles before it and undo it, so none starts
 // until the kernel says the command is done ("done" message, sent after any change of the handles).
-const CHANGES_HANDLES = new Set(["undo", "redo", "rectify_all", "rectify_line", "reset", "arrow", "load"]);
+// Level's "done" comes once its rotation is applied, after it was found in the background.
+const CHANGES_HANDLES = new Set(["undo", "redo", "rectify_all", "rectify_line", "reset", "arrow", "load", "accept_suggestion", "accept_all", "level"]);
 // Commands that leave the result as it is (no latency is taken for them).
-const KEEPS_RESULT = new Set(["save", "save_video", "cancel_video"]);
+const KEEPS_RESULT = new Set(["save", "save_video", "cancel_video", "suggest", "drop_suggestions"]);
 
 // --- the state ------------------------------------------------------------------------------
 /**
@@ -265,6 +276,14 @@ function buildToolbar(ed, fileInput, spinner) {
       button("reset", "Reset selected", "Undo the selected handle's transformation (R)", () => commandSelected(ed, "reset")),
     ),
     group(
+      button("suggest", "Suggest lines", "Find straight edges in the panorama, shown dashed on the input: click one to add it as a line", () =>
+        command(ed, "suggest"),
+      ),
+      button("accept-all", "Accept all", "Add every suggested line as a line handle (one edit)", () => command(ed, "accept_all")),
+      button("drop-suggestions", "Drop", "Drop the suggested lines (Esc)", () => command(ed, "drop_suggestions")),
+      button("level", "Level", "Find how the camera was tilted, from the vertical edges, and undo it (one edit)", () => command(ed, "level")),
+    ),
+    group(
       button("fit", "Fit", "Fit the panorama to the view (F)", () => fit(ed)),
       button("split", "Split", "Compare: the input left of a slider, the result right of it", () => toggleLayer(ed, "split")),
       button("folds", "Folds", "Show where the result folds over", () => toggleLayer(ed, "showFolds")),
@@ -322,6 +341,7 @@ const items = (ed) => doc(ed).handles || [];
 const outputs = (ed) => ed.state.localOutputs || ed.model.get("outputs") || [];
 const selected = (ed) => ed.model.get("selected");
 const status = (ed) => ed.model.get("status") || {};
+const suggestions = (ed) => ed.model.get("suggestions") || [];
 
 function setPending(ed, n) {
   ed.state.pendingCount = n;
@@ -449,6 +469,10 @@ function wireModel(ed) {
       draw(ed);
     }],
     ["change:history", () => updateStatus(ed)],
+    ["change:suggestions", () => {
+      updateStatus(ed);
+      draw(ed);
+    }],
     ...["frame", "frame_count", "frame_interval"].map((name) => [`change:${name}`, () => updateFrames(ed)]),
     ["change:stage", () => onStage(ed)],
     ["change:height", () => layout(ed)],
@@ -652,6 +676,7 @@ function drawPane(ed, p) {
   if (p.kind === "result" && state.split && state.source) drawSplit(ed, p, offsets);
   if (p.kind === "result" && state.showFolds && state.folds) drawImageCopies(ed, p, state.folds, offsets);
   drawSeams(ed, p, offsets);
+  if (state.showHandles && p.kind === "input") drawSuggestions(ed, p, offsets);
   if (state.showHandles) drawHandles(ed, p, offsets);
   ctx.restore();
   p.canvas.dataset.view = JSON.stringify({ x0: tx, y0: ty, w: k, h: k / 2 });
@@ -732,6 +757,16 @@ function drawHandles(ed, p, offsets) {
   if (ed.state.drawing && p.kind === "input") drawDrawing(ed, p, offsets);
 }
 
+// The suggested lines, dashed: none is a handle until a click accepts it.
+function drawSuggestions(ed, p, offsets) {
+  const ctx = p.ctx;
+  ctx.lineWidth = 2;
+  ctx.strokeStyle = COLORS.suggestion;
+  ctx.setLineDash(DASHES.suggestion);
+  for (const s of suggestions(ed)) strokePath(ed, p, suggestionArc(s), offsets);
+  ctx.setLineDash([]);
+}
+
 // The line or cage being drawn, to the cursor.
 function drawDrawing(ed, p, offsets) {
   const ctx = p.ctx;
@@ -778,7 +813,8 @@ function updateStatus(ed) {
   const busy = s.state === "busy";
   ui.root.dataset.busy = String(busy);
   ui.root.dataset.state = s.state || "";
-  ui.spinner.hidden = !busy;
+  ui.spinner.hidden = !busy && !detectRunning(s);
+  ui.root.dataset.suggestions = String(suggestions(ed).length);
   const parts = [];
   if (busy) parts.push("computing...");
   else if (s.state === "idle" && s.message) parts.push(`result ${s.message}`);
@@ -786,6 +822,7 @@ function updateStatus(ed) {
   if (s.notice) parts.push(s.notice);
   if (state.latency !== null && s.state === "idle") parts.push(`shown ${state.latency.toFixed(0)} ms after the edit`);
   if (s.fold_area > 0) parts.push(`fold-over ${(100 * s.fold_area).toPrecision(2)}% of the sphere (magenta)`);
+  parts.push(...detectStatusText(s));
   const video = videoStatusText(s.video);
   if (video) parts.push(video);
   if (state.localNote) parts.push(state.localNote);
@@ -808,6 +845,10 @@ function updateStatus(ed) {
   action("rectify-line").disabled = !h || h.kind !== "line";
   action("reset").disabled = !h;
   action("delete").disabled = !h;
+  action("suggest").disabled = Boolean(s.suggest && s.suggest.state === "running");
+  action("level").disabled = Boolean(s.level && s.level.state === "running");
+  action("accept-all").disabled = suggestions(ed).length === 0;
+  action("drop-suggestions").disabled = suggestions(ed).length === 0;
   action("split").classList.toggle("ow-on", state.split);
   action("folds").classList.toggle("ow-on", state.showFolds);
   action("handles").classList.toggle("ow-on", state.showHandles);
@@ -929,6 +970,11 @@ function onDown(ed, p, e) {
     return;
   }
   const found = state.showHandles ? hit(ed, p, x, y) : null;
+  const suggested = !found && p.kind === "input" && state.showHandles ? suggestionAt(state.view, suggestions(ed), x, y) : null;
+  if (suggested) {
+    command(ed, "accept_suggestion", { key: suggested.key }); // the kernel adds it as a line handle: one edit
+    return;
+  }
   if (!found) {
     select(ed, -1);
     state.drag = { type: "pan", x, y, view: { ...state.view } };
@@ -996,7 +1042,9 @@ function hover(ed, p, x, y) {
   const all = items(ed);
   const kept = state.showHandles ? status(ed).kept || [] : [];
   const i = kept.find((j) => j < all.length && onCurve(state.view, all[j], positions(ed, j, p.kind), x, y));
-  const title = i === undefined ? "" : (status(ed).warnings || []).filter((w) => w.includes(`handles[${i}]`)).join("\n");
+  let title = i === undefined ? "" : (status(ed).warnings || []).filter((w) => w.includes(`handles[${i}]`)).join("\n");
+  const suggested = !title && p.kind === "input" && state.showHandles ? suggestionAt(state.view, suggestions(ed), x, y) : null;
+  if (suggested) title = `suggested line, ${(suggested.length || 0).toFixed(0)}° long, confidence ${(suggested.confidence || 0).toFixed(2)}: click to add it`;
   if (p.canvas.title !== title) p.canvas.title = title;
 }
 
@@ -1181,7 +1229,7 @@ function onKey(ed, e) {
 function escape(ed) {
   const { state } = ed;
   const d = state.drag;
-  if (!d && !state.drawing && !state.help) return releaseFocus(ed);
+  if (!d && !state.drawing && !state.help) return suggestions(ed).length ? command(ed, "drop_suggestions") : releaseFocus(ed);
   if (d) {
     state.drag = null;
     if (d.type === "pan") state.view = d.view; // back where the drag started
