@@ -273,10 +273,27 @@ def test_the_gallery_shows_before_and_after_for_each_panorama(site):
             assert src is not None and image_shown(page_path, src), f"the gallery has no {when} image of {name}"
 
 
+def test_the_gallery_shows_the_suggested_lines_and_each_panorama_levelled(site):
+    """The section made by ``omniwidget-suggest``: both pictures of each panorama, and the figures measured at build time."""
+    page_path = site / "gallery" / "index.html"
+    page = read_page(page_path)
+    for name in ("hotel_room", "studio_office", "courtyard", "city_parking"):
+        for picture in ("suggested", "levelled"):
+            src = next((s for s in page.images if s.endswith(f"gallery/{name}_{picture}.jpg")), None)
+            assert src is not None and image_shown(page_path, src), f"the gallery has no {picture} image of {name}"
+    text = " ".join(re.sub(r"<[^>]+>", " ", page_path.read_text(encoding="utf-8")).split())
+    figures = re.findall(
+        r"(\d+) lines found \(\d+ drawn\)\. Level: pitch [-+]\d+\.\d+°, roll [-+]\d+\.\d+°, tilt \d+\.\d+°, from (\d+) vertical", text
+    )
+    assert len(figures) == 4 and all(int(found) > 0 and int(edges) >= 4 for found, edges in figures), figures
+
+
 def test_the_command_line_page_shows_the_commands_own_help(site):
     text = (site / "cli.html").read_text(encoding="utf-8")
-    for flag in ("--handles", "--apply-map", "--output-dir", "--fit"):
+    for flag in ("--handles", "--apply-map", "--output-dir", "--fit", "--max-lines"):
         assert flag in text, flag
+    for command in ("warp", "level", "suggest", "demo", "schema"):
+        assert f"$ omniwidget {command} --help" in text, command
 
 
 def test_every_page_of_the_site_is_there(site):

@@ -106,3 +106,42 @@ def test_a_file_written_whole_gets_the_permissions_a_plain_write_gives(tmp_path)
     kept.chmod(0o640)
     atomic_write_bytes(kept, b"new")
     assert kept.read_bytes() == b"new" and stat.S_IMODE(kept.stat().st_mode) == 0o640  # an existing file keeps its own
+
+
+# --- drawing handles (omniwidget.io.draw) ------------------------------------------------------
+
+
+def _drawn(canvas: np.ndarray) -> np.ndarray:
+    """Pixels drawn on a black canvas."""
+    return canvas.any(axis=2)
+
+
+def test_draw_handles_in_one_colour_dashed_and_without_dots():
+    """``colour``, ``dash`` and ``dots`` (how the gallery draws suggested lines); the defaults draw as before."""
+    from omniwidget.document.handles import Handles, LineHandle, PointHandle
+    from omniwidget.io.draw import COLOURS, draw_handles
+
+    black = np.zeros((256, 512, 3), np.uint8)
+    # a line across the ±180° seam, so the dashes are cut there too, and a point handle
+    doc = Handles((LineHandle(start=(150.0, 10.0), end=(-120.0, 30.0)), PointHandle(position=(0.0, -20.0), target=(5.0, -20.0))))
+    plain = draw_handles(black, doc)
+    assert np.array_equal(plain, draw_handles(black, doc, colour=None, dash=None, dots=True))
+    assert (plain == COLOURS["line"]).all(axis=2).any() and (plain == COLOURS["point"]).all(axis=2).any()
+
+    purple = (191, 90, 242)
+    one = draw_handles(black, doc, colour=purple)
+    assert np.array_equal(_drawn(one), _drawn(plain))  # the same pixels, another colour
+    assert (one == purple).all(axis=2).any() and not (one == COLOURS["line"]).all(axis=2).any()
+
+    no_dots = draw_handles(black, doc, dots=False)
+    assert _drawn(no_dots).sum() < _drawn(plain).sum() and not (_drawn(no_dots) & ~_drawn(plain)).any()
+
+    dashed = draw_handles(black, doc, dash=(4, 12), dots=False)
+    solid, gaps = _drawn(no_dots), _drawn(dashed)
+    assert 0.2 * solid.sum() < gaps.sum() < 0.7 * solid.sum()  # 4 of every 16 pixels along the arcs, and the dashes' round ends
+    import cv2
+
+    near = cv2.dilate(solid.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    assert not (gaps & ~near).any()  # dashes only along the solid arcs (their ends' antialiasing may reach a pixel further)
+    with pytest.raises(ValueError, match="dash"):
+        draw_handles(black, doc, dash=(0, 5))

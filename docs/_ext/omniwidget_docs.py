@@ -7,6 +7,10 @@
   (``docs/gallery/NAME.json``) with :func:`omniwidget.warp` and shows it before (the handles
   drawn by :func:`omniwidget.io.draw.draw_handles`) and after. The images are made at build
   time and written into the build's ``_static/gallery/``; nothing generated is committed.
+- ``.. omniwidget-suggest:: NAME`` finds the lines in a gallery panorama
+  (:func:`omniwidget.detect.suggest_lines`) and levels it (:func:`omniwidget.detect.level`):
+  the suggestions dashed on the input and the levelled panorama, made at build time into
+  ``_static/gallery/`` as well, with the figures measured.
 - ``.. omniwidget-help:: [SUBCOMMAND]`` shows ``python -m omniwidget [SUBCOMMAND] --help``.
 - The API reference: ``.. omniwidget-layer:: PACKAGE`` documents a layer and each of its public
   modules (found by walking the package), ``.. omniwidget-module:: MODULE`` one module from its
@@ -160,6 +164,114 @@ class GalleryDirective(SphinxDirective):
         container += block
         out.append(container)
         return out
+
+
+#: How the gallery draws suggested lines: the editor's colour for them (``COLORS.suggestion``) and its dashes.
+SUGGESTION_RGB = (191, 90, 242)
+SUGGESTION_DASH = (8.0, 5.0)
+#: The vertical edges the levelling rests on, drawn where the levelled panorama shows them.
+VERTICAL_RGB = (40, 220, 255)
+#: How many suggestions the pictures draw: as many as ``omniwidget suggest`` writes by default.
+SUGGESTED_SHOWN = 40
+
+
+def make_suggest_images(name: str, outdir: Path) -> dict[str, object]:
+    """Suggest lines on the gallery panorama ``name`` and level it; write the two JPEGs into ``outdir``.
+
+    ``NAME_suggested.jpg``: the :data:`SUGGESTED_SHOWN` best suggestions (what ``omniwidget
+    suggest`` writes), dashed. ``NAME_levelled.jpg``: ``omniwidget.warp(image,
+    level(image).handles())`` (what ``omniwidget level`` writes), with the vertical edges the
+    estimate rests on drawn where they are now; not written when the panorama cannot be
+    levelled. Returns the figures the page gives.
+    """
+    import cv2
+    import numpy as np
+
+    import omniwidget as ow
+    from omniwidget.detect import LevelError, level, suggest_lines, suggestions_to_handles
+    from omniwidget.document.handles import Handles, LineHandle
+    from omniwidget.io.draw import draw_handles
+
+    image = ow.read_panorama(_gallery_image_path(name))
+    if image.shape[1] != GALLERY_WIDTH:
+        image = cv2.resize(image, (GALLERY_WIDTH, GALLERY_WIDTH // 2), interpolation=cv2.INTER_AREA)
+    start = time.perf_counter()
+    suggestions = suggest_lines(image, max_lines=None)  # all of them, as omniwidget suggest and level look among
+    found_in = time.perf_counter() - start
+    pictures = {
+        "suggested": draw_handles(
+            image, suggestions_to_handles(suggestions[:SUGGESTED_SHOWN]), colour=SUGGESTION_RGB, dash=SUGGESTION_DASH, dots=False
+        )
+    }
+    made: dict[str, object] = {"found": len(suggestions), "shown": min(len(suggestions), SUGGESTED_SHOWN), "seconds": found_in}
+    start = time.perf_counter()
+    try:
+        found = level(image, suggestions=suggestions)
+    except LevelError as error:
+        made["error"] = str(error)
+    else:
+        result = ow.warp(image, found.handles(), warn=False)
+        made["seconds"] = found_in + time.perf_counter() - start
+        rotation = found.moebius()
+        moved = tuple(
+            LineHandle(start=tuple(map(float, rotation(np.array(e.start)))), end=tuple(map(float, rotation(np.array(e.end)))))
+            for e in found.edges
+        )
+        pictures["levelled"] = draw_handles(result.image, Handles(moved), colour=VERTICAL_RGB, thickness=1, dots=False)
+        made.update(pitch=found.pitch, roll=found.roll, tilt=found.tilt, edges=len(found.edges), residual=found.residual)
+    outdir.mkdir(parents=True, exist_ok=True)
+    for label, picture in pictures.items():
+        ok, data = cv2.imencode(".jpg", picture[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, 88])
+        if not ok:
+            raise RuntimeError(f"could not encode the gallery's {name} {label} image")
+        (outdir / f"{name}_{label}.jpg").write_bytes(data.tobytes())
+    return made
+
+
+class SuggestDirective(SphinxDirective):
+    """``.. omniwidget-suggest:: NAME``: a gallery panorama's suggested lines, and the panorama levelled."""
+
+    required_arguments = 1
+
+    def run(self) -> list[nodes.Node]:
+        """The nodes that stand for the directive."""
+        name = self.arguments[0]
+        image_file = _gallery_image_path(name)
+        if not image_file.exists():
+            raise self.error(f"omniwidget-suggest: {image_file} does not exist")
+        self.env.note_dependency(str(image_file))
+        builder = self.env.app.builder
+        if builder.format != "html":
+            return [nodes.paragraph(text=f"(the {name} suggested-lines and levelled pictures are in the HTML build)")]
+        made = make_suggest_images(name, Path(builder.outdir) / "_static" / "gallery")
+        figures = [
+            '<div class="omniwidget-gallery">',
+            f'<figure><img src="{_relative_static(self.env.docname, f"{name}_suggested.jpg")}" '
+            f'alt="{escape(name)}: the lines omniwidget suggest finds, dashed on the input" loading="lazy">'
+            f"<figcaption>the {made['shown']} best suggested lines, dashed: <code>omniwidget suggest</code>'s handles</figcaption>"
+            "</figure>",
+        ]
+        if "error" not in made:
+            figures.append(
+                f'<figure><img src="{_relative_static(self.env.docname, f"{name}_levelled.jpg")}" '
+                f'alt="{escape(name)} levelled by omniwidget level, the vertical edges it used drawn" loading="lazy">'
+                "<figcaption>levelled: <code>omniwidget level</code>'s result, the vertical edges it rests on drawn</figcaption>"
+                "</figure>"
+            )
+        figures.append("</div>")
+        summary = nodes.paragraph()
+        summary += nodes.Text(f"{made['found']} lines found ({made['shown']} drawn). ")
+        if "error" in made:
+            summary += nodes.Text("Not levelled: ")
+            summary += nodes.literal(text=str(made["error"]))
+            summary += nodes.Text(f". Found at {GALLERY_WIDTH} x {GALLERY_WIDTH // 2} in {made['seconds']:.2f} s at build time.")
+        else:
+            summary += nodes.Text(
+                f"Level: pitch {made['pitch']:+.2f}°, roll {made['roll']:+.2f}°, tilt {made['tilt']:.2f}°, "
+                f"from {made['edges']} vertical edges ({made['residual']:.2f}° rms off the vertical found). "
+                f"Found and levelled at {GALLERY_WIDTH} x {GALLERY_WIDTH // 2} in {made['seconds']:.2f} s at build time."
+            )
+        return [nodes.raw("", "\n".join(figures), format="html"), summary]
 
 
 def _summary(obj: object) -> str:
@@ -406,6 +518,7 @@ def setup(app: Sphinx) -> dict[str, object]:
     app.connect("env-get-outdated", always_reread)
     app.connect("html-page-context", drop_widget_state, priority=400)
     app.add_directive("omniwidget-gallery", GalleryDirective)
+    app.add_directive("omniwidget-suggest", SuggestDirective)
     app.add_directive("omniwidget-help", HelpDirective)
     app.add_directive("omniwidget-aliases", AliasesDirective)
     app.add_directive("omniwidget-module", ModuleDirective)

@@ -24,15 +24,42 @@ def _split_at_seam(px: NDArray[np.float64], width: int) -> list[NDArray[np.float
     return [part for part in np.split(px, jumps) if len(part) > 1]
 
 
-def draw_polyline(image: NDArray[np.uint8], lonlat: ArrayLike, colour: RGB, thickness: int = 2) -> None:
-    """Draw a polyline given by ``[lon, lat]`` vertices (shape (n, 2)) onto ``image`` in place."""
+def _dashes(px: NDArray[np.float64], on: float, off: float) -> list[NDArray[np.float64]]:
+    """The pieces of a pixel polyline (shape (n, 2)) drawn by a dash pattern: ``on`` pixels drawn, ``off`` skipped, from its start."""
+    steps = np.hypot(*np.diff(px, axis=0).T)
+    along = np.concatenate([[0.0], np.cumsum(steps)])
+    pieces = []
+    for s0 in np.arange(0.0, along[-1], on + off):
+        s1 = min(s0 + on, along[-1])
+        inside = (along > s0) & (along < s1)
+        s = np.concatenate([[s0], along[inside], [s1]])
+        piece = np.stack([np.interp(s, along, px[:, 0]), np.interp(s, along, px[:, 1])], axis=1)
+        if s1 > s0:
+            pieces.append(piece)
+    return pieces
+
+
+def draw_polyline(
+    image: NDArray[np.uint8], lonlat: ArrayLike, colour: RGB, thickness: int = 2, *, dash: tuple[float, float] | None = None
+) -> None:
+    """Draw a polyline given by ``[lon, lat]`` vertices (shape (n, 2)) onto ``image`` in place.
+
+    ``dash=(on, off)`` draws it dashed: ``on`` pixels drawn, then ``off`` pixels left out, along
+    the polyline from its first vertex; None (the default) draws it solid.
+    """
     import cv2
 
     width = image.shape[1]
     px = coords.lonlat_to_px(np.asarray(lonlat, dtype=np.float64), width)
     px[:, 0] = np.mod(px[:, 0] + 0.5, width) - 0.5
     shift = 4  # sub-pixel precision for cv2 (coordinates in 1/16 px)
-    for part in _split_at_seam(px, width):
+    parts = _split_at_seam(px, width)
+    if dash is not None:
+        on, off = (float(d) for d in dash)
+        if not (on > 0 and off >= 0):
+            raise ValueError(f"dash must be (on, off) pixels with on > 0 and off >= 0, got {dash!r}")
+        parts = [piece for part in parts for piece in _dashes(part, on, off)]
+    for part in parts:
         pts = np.round((part + 0.5) * (1 << shift)).astype(np.int32)
         cv2.polylines(image, [pts], False, colour, thickness, cv2.LINE_AA, shift)
 
@@ -48,7 +75,16 @@ def _dot(image: NDArray[np.uint8], lonlat: ArrayLike, colour: RGB, radius: int) 
     cv2.circle(image, (int(round(x)), int(round(y))), radius, colour, -1, cv2.LINE_AA)
 
 
-def draw_handles(image: NDArray, handles: Handles, *, stage: str = "input", thickness: int = 2) -> NDArray[np.uint8]:
+def draw_handles(
+    image: NDArray,
+    handles: Handles,
+    *,
+    stage: str = "input",
+    thickness: int = 2,
+    colour: RGB | None = None,
+    dash: tuple[float, float] | None = None,
+    dots: bool = True,
+) -> NDArray[np.uint8]:
     """A copy of ``image`` (as RGB uint8) with the handles drawn on it.
 
     Parameters
@@ -61,6 +97,15 @@ def draw_handles(image: NDArray, handles: Handles, *, stage: str = "input", thic
         under their own Möbius maps (a rectified line's image is straight).
     thickness : int
         Line width in pixels.
+    colour : (int, int, int), optional
+        One RGB colour for every handle (suggested lines, say), instead of the colour of each
+        kind (``COLOURS``: lines red, points magenta, cages white).
+    dash : (float, float), optional
+        ``(on, off)`` in pixels: the arcs drawn dashed (as the editor shows suggestions);
+        solid by default.
+    dots : bool
+        Draw the control points (a line's ends and middle, a point's centre, a cage's
+        vertices); False draws the arcs alone.
 
     Returns
     -------
@@ -71,26 +116,27 @@ def draw_handles(image: NDArray, handles: Handles, *, stage: str = "input", thic
     canvas = display_rgb(image)
     radius = max(2, thickness + 1)
     for h in handles.handles:
-        colour = COLOURS[h.kind]
+        rgb = COLOURS[h.kind] if colour is None else colour
         if isinstance(h, LineHandle):
             curve = _arc(h.start, h.end)
             points = h.control_points()
             if stage == "output":
                 curve, points = h.moebius()(curve), h.target_points()
-            draw_polyline(canvas, curve, colour, thickness)
-            for p in points:
-                _dot(canvas, p, colour, radius)
+            draw_polyline(canvas, curve, rgb, thickness, dash=dash)
+            for p in points if dots else ():
+                _dot(canvas, p, rgb, radius)
         elif isinstance(h, PointHandle):
             points = h.control_points() if stage == "input" else h.target_points()
             for tip in points[1:]:
-                draw_polyline(canvas, _arc(points[0], tip), colour, thickness)
-            _dot(canvas, points[0], colour, radius + 1)
+                draw_polyline(canvas, _arc(points[0], tip), rgb, thickness, dash=dash)
+            if dots:
+                _dot(canvas, points[0], rgb, radius + 1)
         elif isinstance(h, CageHandle):
             vertices = h.vertices if stage == "input" else h.finals
             for a, b in zip(vertices, vertices[1:] + vertices[:1], strict=True):
-                draw_polyline(canvas, _arc(a, b), colour, thickness)
-            for v in vertices:
-                _dot(canvas, v, colour, radius)
+                draw_polyline(canvas, _arc(a, b), rgb, thickness, dash=dash)
+            for v in vertices if dots else ():
+                _dot(canvas, v, rgb, radius)
     return canvas
 
 
