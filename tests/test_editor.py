@@ -31,16 +31,19 @@ def decoded(data: bytes) -> np.ndarray:
 
 @pytest.fixture(autouse=True)
 def _quality_measured_before_the_next_test(monkeypatch):
-    """The editors a test makes finish measuring their results' quality before the next test starts.
+    """Editors measure quality only where a test asks (``quality=True``), and finish before the next test starts.
 
-    Each editor measures in a thread of its own, but ``Result.quality`` is a
-    ``functools.cached_property``, whose lock Python 3.11 shares among all instances: the
-    measurements left running by earlier tests would queue in front of a later test's.
+    The quality line costs each result 0.3 s of waiting and 0.5-1 s of measuring, and only
+    ``test_the_quality_figures_...`` looks at it. An editor that measures does it in a thread
+    of its own, but ``Result.quality`` is a ``functools.cached_property``, whose lock Python
+    3.11 shares among all instances: measurements left running by earlier tests would queue
+    in front of a later test's.
     """
     made = []
     init = Editor.__init__
 
     def recording(self, *args, **kwargs):
+        kwargs.setdefault("quality", False)
         init(self, *args, **kwargs)
         made.append(self)  # an editor whose making raised has no session to wait for
 
@@ -563,23 +566,15 @@ def _raise(exc):
     ("targets", "exc", "shown"),
     [
         (["omniwidget.method.deformation.build_constraints"], ValueError("the constraints are inconsistent"), "ValueError: the constraints"),
-        # each editor measures its results' quality (1-2 s a test): the fast loop fails the first and the compiled stage, CI every one
-        pytest.param(["omniwidget.method.deformation.adaptive_mesh"], MemoryError(), "MemoryError: out of memory", marks=pytest.mark.slow),
-        pytest.param(
-            ["omniwidget.method.bbw.bbw"], np.linalg.LinAlgError("Singular matrix"), "LinAlgError: Singular matrix", marks=pytest.mark.slow
-        ),
+        (["omniwidget.method.deformation.adaptive_mesh"], MemoryError(), "MemoryError: out of memory"),
+        (["omniwidget.method.bbw.bbw"], np.linalg.LinAlgError("Singular matrix"), "LinAlgError: Singular matrix"),
         (
             ["omniwidget.raster._kernels.walk_blend", "omniwidget.raster.pipeline.sampled_coordinates", "omniwidget.raster.pipeline.blended_inverse"],
             FloatingPointError("overflow encountered in the blend"),
             "FloatingPointError: overflow encountered in the blend",
         ),
-        pytest.param(["omniwidget.raster.pipeline.remap"], RuntimeError(), "(RuntimeError)", marks=pytest.mark.slow),
-        pytest.param(
-            ["omniwidget.app.session._jpeg"],
-            ow.ImageError("could not encode the image for display"),
-            "ImageError: could not encode",
-            marks=pytest.mark.slow,
-        ),
+        (["omniwidget.raster.pipeline.remap"], RuntimeError(), "(RuntimeError)"),
+        (["omniwidget.app.session._jpeg"], ow.ImageError("could not encode the image for display"), "ImageError: could not encode"),
     ],
     ids=["constraints", "mesh", "solver", "blend", "resampling", "display"],
 )
@@ -631,11 +626,10 @@ def test_a_result_that_is_not_finite_is_refused_like_an_error(monkeypatch, where
     ("sent", "problem"),
     [
         ('{"format": "omniwidget.handles", "handles": [{"kind": "point", "position": [1,', "not valid JSON"),
-        # the fast loop sends broken text and a NaN, CI every one
-        pytest.param([1, 2], "a handles document is a JSON object", marks=pytest.mark.slow),
-        pytest.param(None, "a handles document is a JSON object", marks=pytest.mark.slow),
+        ([1, 2], "a handles document is a JSON object"),
+        (None, "a handles document is a JSON object"),
         ({"handles": [{"kind": "point", "position": [float("nan"), 0.0]}]}, "handles[0].position[0]"),
-        pytest.param({"handles": [{"kind": "spline", "points": []}]}, "handles[0]", marks=pytest.mark.slow),
+        ({"handles": [{"kind": "spline", "points": []}]}, "handles[0]"),
     ],
     ids=["broken JSON text", "a list", "null", "NaN", "unknown kind"],
 )
@@ -663,8 +657,10 @@ def test_a_job_that_raises_does_not_stop_the_worker(caplog):
     assert "a bug" in caplog.text
 
 
-def test_the_quality_figures_of_the_result_on_screen_come_in_one_line(editor):
+def test_the_quality_figures_of_the_result_on_screen_come_in_one_line():
     """Measured after the result is shown (not holding it up), then said in the status."""
+    editor = Editor(ow.sample_path(), quality=True)
+    editor.wait()
     editor.handles = doc({**WINDOW_TOP, "rectify": True}, {"kind": "point", "position": [90.0, 0.0], "target": [94.0, 2.0]})
     status = editor.wait()
     assert status["state"] == "idle"
