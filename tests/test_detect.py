@@ -439,6 +439,26 @@ def test_a_panorama_wider_than_the_detect_width_is_looked_at_reduced_to_it():
     assert level(big) == level(reduced)
 
 
+@pytest.mark.slow
+def test_twenty_held_out_rooms_each_for_suggestions_and_tilt():
+    """The figures reported (README), on 20 rooms each: seeds 100-119 for the lines, 200-219 for the tilt.
+
+    Measured: precision 0.936, recall 0.872 (the worst room 0.882 and 0.750), endpoints
+    within 1° for 85.8% of the 709 lines found whole (median 0.21°); tilt error at most
+    0.10°, median 0.026°, no room refused.
+    """
+    correct = total = found = lines = 0
+    ends: list[float] = []
+    for seed in range(100, 120):
+        scene = _room(seed)
+        c, t, f, n, e = _match(scene, suggest_lines(scene.image, max_lines=None))
+        correct, total, found, lines, ends = correct + c, total + t, found + f, lines + n, ends + e
+    assert correct / total >= 0.9 and found / lines >= 0.7, (correct / total, found / lines)
+    assert np.mean(np.array(ends) <= 1.0) >= 0.8 and np.median(ends) <= 0.5
+    errors = [float(coords.angular_distance(level(scene.image).up, coords.xyz_to_lonlat(_true_up(scene)))) for scene in map(_room, range(200, 220))]
+    assert max(errors) <= 0.3, errors
+
+
 def test_detect_is_in_the_package_namespace():
     assert ow.suggest_lines is suggest_lines and ow.level is level and ow.Level is Level and ow.LevelError is LevelError
     assert issubclass(LevelError, ow.OmniwidgetError)
