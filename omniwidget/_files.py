@@ -9,7 +9,7 @@ from pathlib import Path
 
 __all__ = ["atomic_write_bytes", "remove_leftovers"]
 
-#: The temporary files are ``.NAME.XXXXXXXX.tmp`` beside ``NAME`` (:func:`tempfile.mkstemp`'s eight characters).
+#: The temporary files are ``.NAME.`` and eight random characters (:func:`tempfile.mkstemp`'s) and ``.tmp``, beside ``NAME``.
 _SUFFIX = ".tmp"
 
 # The process's umask, read once at import (reading it means setting it, which is not thread-safe later).
@@ -47,7 +47,7 @@ def remove_leftovers(path: Path, suffix: str = _SUFFIX) -> None:
     For a write that may be retried after its process died (a Dask worker killed, say):
     ``atomic_write_bytes`` cleans up after itself whenever it can, but not after a kill.
     ``suffix`` names the other writers' temporary files made the same way
-    (``.NAME.XXXXXXXX`` and the suffix; a video's are ``.part``).
+    (``.NAME.``, eight random characters and the suffix; a video's suffix is ``.part``).
     """
     path = Path(path)
     pattern = re.compile(re.escape(f".{path.name}.") + r"[a-z0-9_]{8}" + re.escape(suffix))

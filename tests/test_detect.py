@@ -397,10 +397,7 @@ def test_level_accepts_given_suggestions():
 @pytest.mark.slow
 def test_levelling_the_sample_twice_leaves_it_level():
     image = ow.sample_image()
-    try:
-        first = level(image)
-    except LevelError:
-        pytest.skip("no vertical edges found in the sample")
+    first = level(image)  # the hotel room shows about 50 vertical edges: a LevelError here is a failure
     levelled = ow.warp(image, first.handles()).image
     assert level(levelled).tilt < 0.2
 

@@ -372,8 +372,11 @@ def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[
 # --- videos: cut into time ranges, each warped by a task, then joined without re-encoding ---------
 
 
-def _plan_video(src: str, segment_seconds: float) -> tuple[tuple[float | None, float | None], ...]:
-    """The time ranges ``(start, end)`` a video is cut into, seconds on its timeline (None: open): equal, about ``segment_seconds`` long."""
+def _plan_video(src: str, segment_seconds: float) -> tuple[int, tuple[tuple[float | None, float | None], ...]]:
+    """The video's frame width, and the time ranges ``(start, end)`` it is cut into.
+
+    The ranges are in seconds on its timeline (None: open), equal, about ``segment_seconds`` long.
+    """
     from ..errors import VideoError
     from ..io.video import probe_video
 
@@ -383,7 +386,7 @@ def _plan_video(src: str, segment_seconds: float) -> tuple[tuple[float | None, f
         raise VideoError(f"{src}: {problem}")
     count = max(1, round(info.duration / segment_seconds)) if info.duration else 1
     cuts: list[float | None] = [info.start + k * info.duration / count for k in range(1, count)] if info.duration else []
-    return tuple(zip([None, *cuts], [*cuts, None], strict=True))
+    return info.width, tuple(zip([None, *cuts], [*cuts, None], strict=True))
 
 
 def _segment_paths(dst: Path, count: int) -> list[Path]:
@@ -392,17 +395,17 @@ def _segment_paths(dst: Path, count: int) -> list[Path]:
 
 
 def _warp_segment(
-    recipe: _Recipe, src: str, seg: str, start: float | None, end: float | None, make_folder: bool
+    recipe: _Recipe, src: str, src_width: int, seg: str, start: float | None, end: float | None, make_folder: bool
 ) -> tuple[float, float, tuple[str, ...]]:
-    """Warp one time range of a video into ``seg`` (video only, from a key frame); ``(seconds, map seconds, warnings)``."""
-    from ..io.video import TEMPORARY_SUFFIX, probe_video, warp_video
+    """Warp one time range of a video ``src_width`` wide into ``seg`` (video only, from a key frame); ``(seconds, map seconds, warnings)``."""
+    from ..io.video import TEMPORARY_SUFFIX, warp_video
 
     tick = time.perf_counter()
     target = Path(seg)
     if make_folder:
         target.parent.mkdir(exist_ok=True)
     remove_leftovers(target, TEMPORARY_SUFFIX)
-    out_width = _output_width(recipe, probe_video(src).width)
+    out_width = _output_width(recipe, src_width)
     before = time.perf_counter()
     inverse_map, warnings = _inverse_map(recipe, out_width, keep=True)
     map_seconds = time.perf_counter() - before
@@ -632,10 +635,10 @@ def _in_process(
         raise AssertionError("unreachable")
 
     def video(src: Path, dst: Path) -> FileReport:
-        ranges = attempt(_plan_video, str(src), recipe.video.segment_seconds)
+        width, ranges = attempt(_plan_video, str(src), recipe.video.segment_seconds)
         segs = [str(p) for p in _segment_paths(dst, len(ranges))]
         try:
-            done = [attempt(_warp_segment, recipe, str(src), seg, a, b, make_folder) for seg, (a, b) in zip(segs, ranges, strict=True)]
+            done = [attempt(_warp_segment, recipe, str(src), width, seg, a, b, make_folder) for seg, (a, b) in zip(segs, ranges, strict=True)]
             seconds, map_seconds, warnings = attempt(_join_segments, recipe, str(src), segs, str(dst), done)
         finally:
             _remove_segments(segs)
@@ -729,10 +732,10 @@ def _on_cluster(
                 files[i] = FileReport(src, dst, error=_describe(exc, src), task=future.key, segments=len(segments.get(i, [])) or 1)
             else:
                 if what == "plan":
-                    ranges = value  # the plan's ranges, unpacked with the worker's address
+                    width, ranges = value
                     segs = segments[i] = [str(p) for p in _segment_paths(dst, len(ranges))]
                     parts = [
-                        submit(f"{prefix}-{i}-{k}", i, "range", _warp_segment, shared, str(src), seg, a, b, make_folder)
+                        submit(f"{prefix}-{i}-{k}", i, "range", _warp_segment, shared, str(src), width, seg, a, b, make_folder)
                         for k, (seg, (a, b)) in enumerate(zip(segs, ranges, strict=True))
                     ]
                     pending.add(submit(f"{prefix}-{i}", i, "join", _join_segments, shared, str(src), segs, str(dst), parts))

@@ -74,7 +74,7 @@ INPUT_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv", ".webm", ".avi", ".mts", ".m2t
 #: Containers written: MP4 and QuickTime (the spherical metadata's boxes are theirs).
 OUTPUT_SUFFIXES = (".mp4", ".m4v", ".mov")
 #: The end of the temporary file's name a video is written to before it is renamed
-#: (``.NAME.XXXXXXXX.part``, removed by ``omniwidget._files.remove_leftovers(NAME, TEMPORARY_SUFFIX)``).
+#: (``.NAME.``, eight random hex digits, ``.part``; removed by ``omniwidget._files.remove_leftovers(NAME, TEMPORARY_SUFFIX)``).
 TEMPORARY_SUFFIX = ".part"
 #: Pixel formats resampled plane by plane, and the format they are written in.
 PLANE_FORMATS = {"yuv420p": "yuv420p", "yuvj420p": "yuv420p", "yuv420p10le": "yuv420p10le"}
@@ -1214,14 +1214,18 @@ def join_video_segments(
             count = 0
             for path, seg in zip(paths, opened, strict=True):
                 v = seg.streams.video[0]
-                packets = [q for q in seg.demux(v) if q.size]
-                if not packets or packets[0].pts is None or count + len(packets) > len(shown):
+                if count >= len(shown):
                     raise VideoError(f"{path}: the segments hold more frames than {source} ({len(shown)})")
-                if any(q.pts is None for q in packets):
-                    raise VideoError(f"{path}: a frame of this segment has no time stamp")
-                base = min(int(q.pts) for q in packets)
-                begin = Fraction(shown[count]) * time_base  # where this segment's first frame is shown
-                for q in packets:
+                base = v.start_time  # the time stamp of the segment's first frame shown (the container says it)
+                begin = Fraction(shown[count]) * time_base  # where that frame is shown in the source
+                for q in seg.demux(v):  # packet by packet: a segment is never held in memory whole
+                    if not q.size:
+                        continue
+                    if q.pts is None or base is None:
+                        raise VideoError(f"{path}: a frame of this segment has no time stamp")
+                    if count >= len(shown):
+                        raise VideoError(f"{path}: the segments hold more frames than {source} ({len(shown)})")
+                    count += 1
                     pts = begin + (int(q.pts) - base) * _time_base(v)
                     dts = begin + (int(q.dts if q.dts is not None else q.pts) - base) * _time_base(v)
                     while next_sound is not None and next_sound.dts is not None and next_sound.dts * next_sound.time_base <= dts:
@@ -1232,7 +1236,6 @@ def join_video_segments(
                     q.time_base = time_base
                     q.stream = out_video
                     output.mux(q)
-                count += len(packets)
             if count != len(shown):
                 raise VideoError(f"the segments hold {count} frame(s) but {source} has {len(shown)}: a range is missing")
             while next_sound is not None:
