@@ -73,9 +73,9 @@ LSD_SCALE = 0.8
 #: Smallest panorama height the detector works on, pixels.
 MIN_HEIGHT = 32
 #: Widest the panorama is analysed at: a wider one is first reduced to it (area average). The
-#: view sizes, LSD's scale and the merge tolerances are set for it, and lines and tilt are
-#: angles, found as well here as at 12000 pixels: analysed whole, a 12k street scene gave
-#: texture for edges (a 6° tilt where there is none) in a minute.
+#: view sizes, LSD's scale and the merge tolerances are set for it; lines and tilt are angles,
+#: found nearly as well here as at twice the width in a quarter of the time, and a large
+#: photograph analysed whole finds its texture for edges (bench/RESULTS.md, "Suggested lines").
 DETECT_WIDTH = 2048
 #: Shortest detected image segment kept before lifting, in pixels of a view.
 MIN_SEGMENT_PX = 8.0
