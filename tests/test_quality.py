@@ -9,6 +9,7 @@ from omniwidget.evaluate.quality import (
     cage_motion,
     conformal_distortion,
     coverage,
+    dense_straightness,
     displacement,
     fold_over,
     forward_points,
@@ -229,7 +230,11 @@ def test_summary_of_a_warp_is_its_figures_one_by_one():
     m = result.inverse_map(np.float64)
     assert s.method == "bbw" and s.width == width and len(s.lines) == 1
     ((control, samples),) = result.constraints.lines
-    assert s.lines[0] == straightness(result.forward_points(samples, control), width, fit="best") == s.straightness
+    # measured densely along the whole arc, through the map that placed the pixels
+    dense = dense_straightness(result.placed_map(), line.start, line.end, guess=result.controls[control].moebius)
+    assert s.lines[0] == pytest.approx(dense, abs=1e-9) and s.lines[0] == s.straightness
+    at_samples = straightness(result.forward_points(samples, control), width, fit="best")
+    assert at_samples - 1e-3 <= s.lines[0] < 0.05, (s.lines[0], at_samples)  # the dense figure misses nothing the samples see
     assert s.lines[0] == pytest.approx(line_straightness(m, samples, start=result.controls[control].moebius(samples)), abs=2e-3)
     assert s.distortion_mean == conformal_distortion(m).mean and s.tear == tear(m) and s.coverage == coverage(m)
     assert s.fold_over == result.folds.area and s.displacement == displacement(m) > 0
@@ -267,3 +272,26 @@ def test_the_closed_form_singular_value_ratio_matches_an_svd_and_is_exact_near_c
     # a rotation scaled by 3 is conformal; a shear of 1e-9 distorts by 1e-9 (+ 5e-19), which an SVD gets to 1e-7 only
     near = np.array([[[0.0, -3.0], [3.0, 0.0]], [[1.0, 1e-9], [0.0, 1.0]], [[1.0, 0.0], [0.0, -2.0]]])
     np.testing.assert_allclose(ratio(near), [0.0, 1e-9 + 0.5e-18, 1.0], rtol=1e-12, atol=1e-24)  # k + k²/2 + O(k³)
+
+
+def test_dense_straightness_sees_a_bend_between_the_samples():
+    """A map straight at a line's 50 samples and bent between two of them: only the dense figure sees the bend."""
+    width = 1024
+    grid = coords.grid_lonlat(width)
+    lon, lat = np.meshgrid(*grid)
+    samples = coords.geodesic((-60.0, 0.0), (60.0, 0.0), np.linspace(0.0, 1.0, 50))
+    a, b = samples[24, 0], samples[25, 0]  # 2.4° apart, 7 pixels
+    across = np.clip((lon - a) / (b - a), 0.0, 1.0)
+    bump = 0.5 * np.sin(np.pi * across) ** 2 * np.exp(-0.5 * (lat / 5.0) ** 2)  # 0 at every sample, 0.5° between two
+    inverse = np.stack([lon, lat + bump], axis=-1)  # the output row at the equator shows a little below it
+    at_samples = line_straightness(inverse, samples)
+    dense = dense_straightness(inverse, (-60.0, 0.0), (60.0, 0.0), guess=lambda p: p)
+    assert at_samples < 0.01, at_samples  # the bump reaches the samples only by the map's bilinear interpolation
+    # the line dips 0.5° (1.42 px) between two samples; the best fit's strip is half that deep
+    assert dense == pytest.approx(0.5 * 0.5 * width / 360.0, rel=0.05), dense
+    # a straight map: the equator stays straight, and a tilted great circle shows its own bend
+    identity = np.stack([lon, lat], axis=-1)
+    assert dense_straightness(identity, (-60.0, 0.0), (60.0, 0.0)) < 1e-3
+    tilted = coords.geodesic((-60.0, 10.0), (60.0, 10.0), np.linspace(0.0, 1.0, 2001))
+    expected = straightness(tilted, width, fit="best")
+    assert dense_straightness(identity, (-60.0, 10.0), (60.0, 10.0)) == pytest.approx(expected, rel=1e-3, abs=1e-3)

@@ -24,6 +24,7 @@ Use float64 maps: float32 holds only about 1e-4 of a pixel step.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -35,6 +36,8 @@ from ..raster.fold import FoldOver, fold_over
 from ..sphere import coords
 from ..sphere.arcs import inside_polygon
 
+#: Samples per line piece in :func:`dense_line`'s first pass, which measures how long its image is.
+DENSE_FIRST = 65
 #: The far field: the output sphere farther than this many degrees from every handle.
 FAR_FIELD = 30.0
 
@@ -50,6 +53,8 @@ __all__ = [
     "cage_motion",
     "conformal_distortion",
     "coverage",
+    "dense_line",
+    "dense_straightness",
     "kink",
     "kink_of_curve",
     "near_mask",
@@ -296,17 +301,27 @@ def forward_points(
     from scipy.spatial import cKDTree
 
     m = check_inverse_map(inverse_map)
-    height, width = m.shape[:2]
-    targets = coords.lonlat_to_xyz(lonlat).reshape(-1, 3)
+    width = m.shape[1]
     src = coords.lonlat_to_xyz(m)
-    stride = max(1, width // 512)
+    lonlat = np.asarray(lonlat, np.float64)
     if start is None:
+        stride = max(1, width // 512)
         coarse = src[::stride, ::stride]
-        _, nearest = cKDTree(coarse.reshape(-1, 3)).query(targets)
+        _, nearest = cKDTree(coarse.reshape(-1, 3)).query(coords.lonlat_to_xyz(lonlat).reshape(-1, 3))
         row, col = np.divmod(nearest, coarse.shape[1])
-        x, y = (col * stride).astype(np.float64), (row * stride).astype(np.float64)
-    else:
-        x, y = coords.lonlat_to_px(np.asarray(start, np.float64).reshape(-1, 2), width).T
+        start = coords.px_to_lonlat(np.stack([col * stride, row * stride], axis=1).astype(np.float64), width)
+    out = _forward_xyz(src, lonlat.reshape(-1, 2), np.asarray(start, np.float64).reshape(-1, 2), iterations, tolerance)
+    return out.reshape(lonlat.shape)
+
+
+def _forward_xyz(
+    src: NDArray[np.float64], lonlat: NDArray[np.float64], start: NDArray[np.float64], iterations: int = 12, tolerance: float = 1e-3
+) -> NDArray[np.float64]:
+    """:func:`forward_points` on an inverse map given as unit vectors (H, W, 3), from output ``[lon, lat]`` starts (n, 2)."""
+    height, width = src.shape[:2]
+    stride = max(1, width // 512)
+    targets = coords.lonlat_to_xyz(lonlat).reshape(-1, 3)
+    x, y = coords.lonlat_to_px(start.reshape(-1, 2), width).T
     east, north = coords.local_frame(coords.xyz_to_lonlat(targets))
     for _ in range(iterations):
         value, d_x, d_y = _bilinear(src, x, y)
@@ -331,7 +346,7 @@ def forward_points(
     miss = np.degrees(np.arccos(np.clip(np.sum(value * targets, axis=1) / np.linalg.norm(value, axis=1), -1.0, 1.0)))
     out = coords.px_to_lonlat(np.stack([x % width, y], axis=1), width)
     out[miss * width / 360.0 > tolerance] = np.nan
-    return out.reshape(np.shape(lonlat))
+    return out
 
 
 def line_straightness(inverse_map: ArrayLike, samples: ArrayLike, width: int | None = None, start: ArrayLike | None = None) -> float:
@@ -359,6 +374,72 @@ def line_straightness(inverse_map: ArrayLike, samples: ArrayLike, width: int | N
     if not np.all(np.isfinite(out)):
         return float("nan")
     return straightness(out, width or m.shape[1], fit="best")
+
+
+def dense_line(
+    xyz_map: NDArray[np.float64], pieces: Sequence[tuple[ArrayLike, ArrayLike, Callable[[NDArray[np.float64]], NDArray[np.float64]]]]
+) -> NDArray[np.float64]:
+    """A line's output image found densely: at least one sample per output pixel of its arc, through a map.
+
+    Parameters
+    ----------
+    xyz_map : ndarray of float64, shape (H, W, 3)
+        The inverse map as unit vectors (``coords.lonlat_to_xyz(inverse_map)``), computed
+        once by the caller for all the lines it measures.
+    pieces : sequence of (start, end, guess)
+        The line's pieces in order: input ``[lon, lat]`` ends (2,) in degrees, and a
+        function taking input ``[lon, lat]`` (n, 2) to where the output is expected to
+        show them (for example a piece's own Möbius map), which starts the search.
+
+    Returns
+    -------
+    ndarray of float64, shape (s, 2)
+        Output ``[lon, lat]`` along the whole line, its pieces in order; NaN where the map
+        does not show a sample (:func:`forward_points`).
+    """
+    width = xyz_map.shape[1]
+    found = []
+    for start, end, guess in pieces:
+        coarse = guess(coords.geodesic(start, end, np.linspace(0.0, 1.0, DENSE_FIRST)))
+        length = float(np.sum(coords.angular_distance(coarse[:-1], coarse[1:]))) * width / 360.0
+        n = max(DENSE_FIRST, 2 * math.ceil(length) + 1)
+        samples = coords.geodesic(start, end, np.linspace(0.0, 1.0, n))
+        found.append(_forward_xyz(xyz_map, samples, guess(samples)))
+    return np.concatenate(found)
+
+
+def dense_straightness(inverse_map: ArrayLike, start: ArrayLike, end: ArrayLike, guess: Callable[[NDArray], NDArray] | None = None) -> float:
+    """How straight a marked line comes out along its whole length, densely, in output pixels.
+
+    Unlike :func:`line_straightness` on a line's constrained samples (where a blend's
+    weights are 1 by construction), the line's great-circle arc from ``start`` to ``end``
+    is sampled at least twice per output pixel of its image and each sample found through
+    ``inverse_map``: pass the map that placed the pixels (``Result.placed_map()``).
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, W, 2)
+        See :func:`local_jacobians`.
+    start, end : array_like, shape (2,)
+        The line's input ends, ``[lon, lat]`` in degrees.
+    guess : callable, optional
+        Input ``[lon, lat]`` (n, 2) to where the output should show them, which starts the
+        search (a line's own Möbius map, say); by default the nearest output pixel.
+
+    Returns
+    -------
+    float
+        The largest distance of the output image from its best straight fit, in pixels;
+        NaN if the output does not show every sample.
+    """
+    m = check_inverse_map(inverse_map)
+    xyz = coords.lonlat_to_xyz(m)
+    if guess is None:
+        def guess(lonlat: NDArray) -> NDArray:
+            return forward_points(m, lonlat)
+
+    out = dense_line(xyz, [(start, end, guess)])
+    return straightness(out, m.shape[1], fit="best") if np.all(np.isfinite(out)) else math.nan
 
 
 def coverage(inverse_map: ArrayLike, cells: int = 360) -> float:
@@ -641,9 +722,9 @@ class Summary:
         What made the warp: ``"bbw"`` for :func:`omniwidget.warp`, else the baseline's name.
     lines : tuple of float
         Each straight segment's largest distance from its best straight fit in the output,
-        in output pixels (:func:`straightness` of its samples found in the output): one per
-        line piece, a line cut for its length measured whole (``constraints.chains``); NaN
-        for one the output does not show.
+        in output pixels, measured along its whole arc (:func:`dense_line`, not only at the
+        constrained samples): one per line piece, a line cut for its length measured whole
+        (``constraints.chains``); NaN for one the output does not show.
     distortion_mean, distortion_p99 : float
         Conformal distortion, area-weighted mean and 99th percentile within ±80°
         (:func:`conformal_distortion`).
@@ -733,10 +814,14 @@ class Summary:
         return out
 
 
-def _chains(result: Any) -> list[NDArray[np.float64]]:
-    """Each straight output segment's samples found in the output, ``[lon, lat]`` (s, 2): its pieces' in order."""
-    lines = result.constraints.lines
-    return [np.concatenate([result.forward_points(lines[k][1], lines[k][0]) for k in chain]) for chain in result.constraints.chains]
+def _chains(result: Any, placed: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+    """Each straight output segment found densely in the output through ``placed`` (:func:`dense_line`), its pieces in order."""
+    lines, controls = result.constraints.lines, result.controls
+    xyz = coords.lonlat_to_xyz(placed)
+    return [
+        dense_line(xyz, [(lines[k][1][0], lines[k][1][-1], controls[lines[k][0]].moebius) for k in chain])
+        for chain in result.constraints.chains
+    ]
 
 
 def summary(result: Any) -> Summary:
@@ -755,16 +840,17 @@ def summary(result: Any) -> Summary:
 
     Notes
     -----
-    Lines are found in the output by inverting the map from each piece's own Möbius map
-    (``result.forward_points``), so a line is measured where it is even where the map
-    folds elsewhere.
+    Lines are measured along their whole length, densely (:func:`dense_line`: at least two
+    samples per output pixel), through the map that placed the pixels
+    (``result.placed_map()``), each piece's search started from its own Möbius map, so a
+    line is measured where it is even where the map folds elsewhere.
     """
     from ..document.handles import CageHandle
 
     m = result.inverse_map(np.float64)
     width = m.shape[1]
-    lines = tuple(straightness(chain, width, fit="best") for chain in _chains(result))
-    lines = tuple(v if math.isfinite(v) else math.nan for v in lines)
+    placed = result.placed_map() if hasattr(result, "placed_map") else m
+    lines = tuple(straightness(chain, width, fit="best") if np.all(np.isfinite(chain)) else math.nan for chain in _chains(result, placed))
     distortion = conformal_distortion(m)
     far = far_field(m, coords.xyz_to_lonlat(result.constraints.points), distortion=distortion, folds=result.folds.mask)
     fixed = [h.vertices for h in result.handles.handles if isinstance(h, CageHandle) and h.finals == h.vertices]

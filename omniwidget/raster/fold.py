@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._checks import check_inverse_map
 from ..sphere import coords
 from . import _kernels
-from .warping import PAD
+from .warping import coordinates_lonlat
 
 __all__ = ["FoldOver", "fold_of_coordinates", "fold_over"]
 
@@ -107,6 +107,4 @@ def fold_of_coordinates(coordinates: NDArray[np.float32], src_width: int) -> Fol
     """
     if _kernels.available():
         return FoldOver.from_mask(_kernels.fold_mask(coordinates, src_width))
-    pixel = np.float32(360.0 / src_width)  # back to [lon, lat], in float32 (enough for the signs)
-    lonlat = (coordinates - np.float32(PAD - 0.5)) * (pixel * np.array([1, -1], np.float32)) + np.array([-180, 90], np.float32)
-    return fold_over(lonlat)
+    return fold_over(coordinates_lonlat(coordinates, src_width, np.float32))  # float32: enough for the signs

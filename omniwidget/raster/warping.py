@@ -29,6 +29,7 @@ __all__ = [
     "ORDERS",
     "WarpResult",
     "check_warp_arguments",
+    "coordinates_lonlat",
     "grid_homogeneous",
     "grid_inverse",
     "inverse_lonlat",
@@ -185,6 +186,30 @@ def remap_coordinates(fn: GridInverse, width: int, src_width: int, offset: float
 
     run_blocks(width // 2, work)
     return out
+
+
+def coordinates_lonlat(
+    coordinates: NDArray[np.float32], src_width: int, dtype: type[np.floating] = np.float64, offset: float = PAD
+) -> NDArray[np.floating]:
+    """The inverse map ``[lon, lat]`` (degrees) of source pixel coordinates: :func:`remap_coordinates` undone.
+
+    Parameters
+    ----------
+    coordinates : ndarray of float32, shape (H, W, 2)
+        ``(x, y) + offset`` in the source, as a warp resamples by.
+    src_width : int
+        Width of the source.
+    dtype : {numpy.float64, numpy.float32}
+        Of the answer (float32 is enough for signs, as the fold check takes them).
+    offset : float
+
+    Returns
+    -------
+    ndarray, shape (H, W, 2)
+    """
+    pixel = dtype(360.0 / src_width)
+    scale = np.array([pixel, -pixel], dtype)
+    return (coordinates.astype(dtype, copy=False) - dtype(offset - 0.5)) * scale + np.array([-180, 90], dtype)
 
 
 def pad_panorama(image: NDArray, pad: int = PAD) -> NDArray:
