@@ -53,9 +53,11 @@ if TYPE_CHECKING:
 __all__ = [
     "FAMILIES",
     "close_pair",
+    "closest_latitude",
     "family_scene",
     "lined_room",
     "mark_lines",
+    "match_line",
     "FACE_COLORS",
     "FACE_NAMES",
     "LINE_COLOR",
@@ -133,6 +135,36 @@ class SceneLine:
         highest and lowest points of the whole great circle and keeps those on the arc.
         """
         return coords.arc_max_abs_lat(self.start, self.end)
+
+    def distance(self, lonlat: ArrayLike) -> FloatArray:
+        """Angular distance from each point to the arc (not the whole great circle), degrees.
+
+        A point whose foot on the great circle falls within the arc is as far as it is from
+        the circle; any other is as far as the nearer endpoint.
+
+        Parameters
+        ----------
+        lonlat : array_like, shape (..., 2)
+            ``[lon, lat]`` in degrees.
+
+        Returns
+        -------
+        ndarray of float64, shape (...)
+            Degrees, ``>= 0``.
+        """
+        points = coords.lonlat_to_xyz(lonlat)
+        a, b = coords.lonlat_to_xyz(np.array([self.start, self.end]))
+        normal = np.cross(a, b)
+        normal /= np.linalg.norm(normal)
+        across = np.cross(normal, a)  # a and across span the circle's plane, across towards b
+        length = math.atan2(float(np.linalg.norm(np.cross(a, b))), float(a @ b))
+        t = np.arctan2(points @ across, points @ a)
+        to_circle = np.degrees(np.arcsin(np.clip(np.abs(points @ normal), 0.0, 1.0)))
+        # atan2 of sine and cosine: exact near an endpoint too, where arccos of a dot product is not
+        to_a = np.arctan2(np.linalg.norm(np.cross(points, a), axis=-1), points @ a)
+        to_b = np.arctan2(np.linalg.norm(np.cross(points, b), axis=-1), points @ b)
+        to_ends = np.degrees(np.minimum(to_a, to_b))
+        return np.where((t >= 0) & (t <= length), to_circle, to_ends)
 
 
 @dataclass(frozen=True)
@@ -469,7 +501,7 @@ def close_pair(
 # --- scene families ------------------------------------------------------------------
 
 #: The generated scene families of :func:`family_scene`; a family's index here seeds its rooms.
-FAMILIES: tuple[str, ...] = ("short", "long", "cage_small", "cage_large", "cage_fixed", "points", "mixed")
+FAMILIES: tuple[str, ...] = ("short", "long", "cage_small", "cage_large", "cage_fixed", "points", "mixed", "room_edges", "suggested")
 
 #: Width (pixels) at which a family's candidate lines must bend: the handles do not depend on the width rendered.
 FAMILY_BEND_WIDTH = 2048
@@ -477,6 +509,46 @@ FAMILY_BEND_WIDTH = 2048
 FAMILY_MIN_BEND = 5.0
 #: Highest ``|latitude|`` (degrees) anywhere on a marked line.
 FAMILY_MAX_ABS_LAT = 65.0
+
+#: ``"room_edges"``: latitude range (degrees, north for a ceiling edge, south for a floor edge) of
+#: the point of a marked wall-floor or wall-ceiling edge closest to the camera.
+ROOM_EDGE_LATITUDES = (20.0, 60.0)
+#: ``"room_edges"``: arc (degrees) of a marked horizontal edge, between its clicked ends.
+ROOM_EDGE_LENGTHS = (50.0, 150.0)
+#: ``"room_edges"``: how far (degrees of arc along the edge) each marked end stops short of the
+#: room corner it aims at, drawn uniformly: a person's click lands near a corner, not on it, and
+#: two edges meeting there end 1.7-5.4° apart, merged into a joint only when closer than
+#: :data:`omniwidget.method.constraints.JOINT_DISTANCE` (2.4°), as in real use.
+ROOM_CORNER_GAP = (1.0, 3.0)
+#: ``"room_edges"``: highest ``|latitude|`` (degrees) anywhere on a marked line; one degree below
+#: :data:`omniwidget.method.constraints.POLE_LATITUDE`, where a line counts as over a pole.
+ROOM_MAX_ABS_LAT = 74.0
+#: ``"room_edges"``: shortest marked vertical edge, degrees of arc.
+ROOM_MIN_VERTICAL = 15.0
+#: ``"room_edges"``: least distance (degrees) between two marked lines, except within
+#: ``2 * ROOM_SEPARATION`` of a room corner both edges join.
+ROOM_SEPARATION = 5.0
+#: ``"room_edges"``: lines per scene; of them at least ``ROOM_HORIZONTALS[0]`` horizontal edges and
+#: at most ``ROOM_VERTICALS[1]`` vertical ones.
+ROOM_LINES = (3, 8)
+ROOM_HORIZONTALS = (2, 8)
+ROOM_VERTICALS = (0, 3)
+
+#: ``"suggested"``: width (pixels) of the panorama the detector is run on, whatever the width
+#: rendered: :data:`omniwidget.detect.DETECT_WIDTH`, the width the detector analyses at.
+SUGGESTED_WIDTH = 2048
+#: ``"suggested"``: range of ``max_lines`` asked of :func:`omniwidget.detect.suggest_lines`.
+SUGGESTED_LINES = (10, 40)
+#: ``"suggested"``: a suggestion lies on a scene line when at least :data:`SUGGESTED_SHARE` of
+#: its samples are within this many degrees of it (the criterion of the detector's tests).
+SUGGESTED_TOLERANCE = 0.5
+SUGGESTED_SHARE = 0.8
+#: Samples along a suggestion for matching it to a scene line.
+_SUGGESTED_SAMPLES = 41
+#: The detector's suggestions per room and ``max_lines``, kept for the next call with that room
+#: (it is deterministic, and it takes ~1.7 s at 2048 where the rest takes milliseconds).
+_SUGGESTIONS: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+_SUGGESTIONS_KEPT = 64
 
 
 def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Handles, dict[str, Any]]:
@@ -489,9 +561,10 @@ def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Hand
     The handles are drawn from the same generator, so they are the same at every
     ``width``: lines are measured at :data:`FAMILY_BEND_WIDTH`, never at the width rendered.
 
-    Families (lines are pieces of the scene's edges and grid lines, each bent by at least
-    :data:`FAMILY_MIN_BEND` pixels at 2048 and within ±:data:`FAMILY_MAX_ABS_LAT`° of
-    latitude everywhere, keeping 8° from each other as :func:`mark_lines` does):
+    Families (in the first seven, lines are pieces of the scene's edges and grid lines, each
+    bent by at least :data:`FAMILY_MIN_BEND` pixels at 2048 and within
+    ±:data:`FAMILY_MAX_ABS_LAT`° of latitude everywhere, keeping 8° from each other as
+    :func:`mark_lines` does; the last two say their own rules):
 
     ``"short"``
         4-8 lines of 15-50° of arc.
@@ -514,6 +587,41 @@ def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Hand
     ``"mixed"``
         One cage 15-40° across (moved rigidly or fixed, convex or not), 1-2 points and
         3-5 lines of 15-50°, every handle at least 10° from the others.
+
+    ``"room_edges"``
+        The long lines a person marks in a room: its own edges, not pieces of them and not
+        the grid. 3-8 lines (:data:`ROOM_LINES`): 2-8 wall-floor and wall-ceiling edges
+        whose point closest to the camera is seen at 20-60° of latitude
+        (:data:`ROOM_EDGE_LATITUDES`; south for the floor's, north for the ceiling's) and
+        whose marked arc is 50-150° (:data:`ROOM_EDGE_LENGTHS`), then 0-3 vertical
+        wall-wall edges (:data:`ROOM_VERTICALS`; more if needed to make 3 lines) of at
+        least :data:`ROOM_MIN_VERTICAL`°. Each is marked from near one room corner to
+        near the other: every end that aims at a corner stops short of it by 1-3° along
+        the edge (:data:`ROOM_CORNER_GAP`), as clicks do; two edges meeting at a corner
+        end there 1.7-5.4° apart, a joint of the method when closer than its
+        ``JOINT_DISTANCE`` (one corner pair in ten, seeds 0-199). A vertical edge is
+        cut where it would pass :data:`ROOM_MAX_ABS_LAT`° (74: one degree short of the
+        method's pole lines), so every line stays within ±74° everywhere. Lines keep
+        :data:`ROOM_SEPARATION` (5°) apart except within 10° of a corner both join. The
+        bend of a line is not asked for (a vertical edge is straight in the panorama), and
+        the grid is drawn but never marked. Horizontal edges come first, in a random order,
+        then the verticals.
+    ``"suggested"``
+        The lines :func:`omniwidget.detect.suggest_lines` gives on the room (the CLI's
+        ``omniwidget suggest``): the room is rendered at :data:`SUGGESTED_WIDTH` (2048,
+        the detector's own analysis width) whatever ``width`` is, so the handles are the
+        same at every width; ``max_lines`` is drawn in 10-40 (:data:`SUGGESTED_LINES`), and
+        the handles are :func:`omniwidget.detect.suggestions_to_handles` of them, best
+        first (ids ``"suggested-1"``, ...; rectified). There are ``max_lines`` of them
+        unless the detector finds fewer (then all it finds; never on seeds 0-39). Each
+        suggestion's ground truth is the scene line it lies on (:func:`match_line`:
+        :data:`SUGGESTED_SHARE` of its samples within :data:`SUGGESTED_TOLERANCE`° of
+        it); the few that lie on no single line (an arc joining two walls' grid lines
+        along the horizon, say) stay among the handles, as a person accepting every
+        suggestion keeps them, and are listed in ``"unmatched_handles"``. Suggestions
+        may climb past ±75° of latitude (a ceiling line over the camera), as on photos.
+        The detector takes ~1.7 s; its suggestions are kept for the next call with the
+        same room (it is deterministic).
 
     Cages keep their vertices in order around the polygon, are at most 90° across (far
     smaller than a hemisphere) and hold no point and no line.
@@ -538,11 +646,20 @@ def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Hand
         The ground truth the measurements need:
 
         - ``"family"`` (str), ``"seed"`` (int);
-        - ``"lines"``: the marked :class:`SceneLine` of each line handle, in order;
+        - ``"lines"``: the marked :class:`SceneLine` of each line handle of
+          ``"line_handles"``, in order (for ``"suggested"``: the part of the scene line the
+          suggestion spans, its ends' feet on the line, within the line; the handle's own
+          ends are the detector's: a few tenths of a degree off the line, or beyond its
+          end where the detector ran on past it, as far as 10°);
         - ``"parents"``: for each, the full scene line it was cut from (a marked line
           continues beyond its ends when it is shorter than its parent);
         - ``"line_handles"``, ``"cage_handles"``, ``"point_handles"``: lists of int, the
-          handles' indices in ``handles.handles``;
+          handles' indices in ``handles.handles`` (line handles with a ground truth);
+        - ``"unmatched_handles"``: list of int, the line handles on no single scene line
+          (only in ``"suggested"``; empty in the other families);
+        - ``"horizontal"`` (``"room_edges"`` only): list of bool, for each line whether it
+          is a wall-floor or wall-ceiling edge (else a vertical wall-wall edge);
+        - ``"max_lines"`` (``"suggested"`` only): int, the most suggestions asked for;
         - ``"rotations"``: for each cage, its rigid motion, a 3 x 3 float64 rotation
           matrix acting on unit vectors (``targets = R @ vertices``; the identity for a
           fixed cage);
@@ -553,6 +670,8 @@ def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Hand
     ------
     ValueError
         For an unknown family, a negative or non-integer seed, or a bad width.
+    RuntimeError
+        For ``"room_edges"``, if 20 rooms in a row have too few edges to mark (never seen).
 
     Examples
     --------
@@ -569,6 +688,13 @@ def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Hand
     seed = whole_number(seed, "seed", 0)
     width = whole_number(width, "width", 8)
     rng = np.random.default_rng((FAMILIES.index(family), seed))
+    if family == "suggested":
+        return _suggested_scene(rng, seed, width)
+    if family == "room_edges":
+        room, edges = _room_edges(rng, seed)
+        scene = synthetic_room(width, **room)
+        doc = Handles(tuple(LineHandle(line.start, line.end) for line, _ in edges), Options())
+        return scene, doc, _line_truth(family, seed, edges) | {"horizontal": [_is_horizontal(p) for _, p in edges]}
     room = _room_parameters(rng)
     scene = synthetic_room(width, **room)
 
@@ -614,12 +740,7 @@ def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Hand
     handles += [CageHandle(c.vertices, c.targets) for c in cages]
     handles += points
     n_lines, n_cages = len(lines), len(cages)
-    truth = {
-        "family": family,
-        "seed": seed,
-        "lines": [line for line, _ in lines],
-        "parents": [parent for _, parent in lines],
-        "line_handles": list(range(n_lines)),
+    truth = _line_truth(family, seed, lines) | {
         "cage_handles": list(range(n_lines, n_lines + n_cages)),
         "point_handles": list(range(n_lines + n_cages, len(handles))),
         "rotations": [c.rotation for c in cages],
@@ -627,6 +748,186 @@ def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Hand
         "across": [c.across for c in cages],
     }
     return scene, Handles(tuple(handles), Options()), truth
+
+
+def _line_truth(
+    family: str, seed: int, lines: Sequence[tuple[SceneLine, SceneLine]], line_handles: Sequence[int] | None = None
+) -> dict[str, Any]:
+    """The ground truth of a scene of line handles only; the other families add their cages and points (:func:`family_scene`)."""
+    return {
+        "family": family,
+        "seed": seed,
+        "lines": [line for line, _ in lines],
+        "parents": [parent for _, parent in lines],
+        "line_handles": list(range(len(lines))) if line_handles is None else list(line_handles),
+        "unmatched_handles": [],
+        "cage_handles": [],
+        "point_handles": [],
+        "rotations": [],
+        "convex": [],
+        "across": [],
+    }
+
+
+# --- the room's own edges (family "room_edges") -----------------------------------------
+
+
+def _is_horizontal(edge: SceneLine) -> bool:
+    """Whether a (level camera's) edge of the box is a wall-floor or wall-ceiling edge."""
+    return "floor" in edge.faces or "ceiling" in edge.faces
+
+
+def closest_latitude(line: SceneLine) -> float:
+    """Latitude (degrees, signed) of the point of a line's 3D segment closest to the camera.
+
+    For a horizontal segment seen by a level camera this is also where its arc climbs
+    highest (north) or lowest (south): its :attr:`SceneLine.max_abs_lat`, with a sign.
+    """
+    p, q = np.array(line.start_3d), np.array(line.end_3d)
+    step = q - p
+    s = float(np.clip(-np.dot(p, step) / np.dot(step, step), 0.0, 1.0))
+    return float(coords.xyz_to_lonlat(p + s * step)[1])
+
+
+def _room_edges(rng: np.random.Generator, seed: int, attempts: int = 20) -> tuple[dict[str, Any], list[tuple[SceneLine, SceneLine]]]:
+    """A room and its marked edges for ``"room_edges"``: ``(synthetic_room keywords, [(marked, edge)])``.
+
+    Rooms are drawn (:func:`_room_parameters`) until one has :data:`ROOM_HORIZONTALS` ``[0]``
+    horizontal edges that qualify; every room of seeds 0-199 has at the first draw.
+    """
+    for _ in range(attempts):
+        room = _room_parameters(rng)
+        edges = [line for line in synthetic_room(8, **room).lines if line.kind == "edge"]  # the lines do not depend on the width
+        gaps = rng.uniform(*ROOM_CORNER_GAP, size=(len(edges), 2))
+        horizontal, vertical = [], []
+        for edge, (gap_start, gap_end) in zip(edges, gaps, strict=True):
+            if _is_horizontal(edge):
+                lat = abs(closest_latitude(edge))
+                piece = _sub_line(edge, float(gap_start), edge.length - float(gap_end))
+                if ROOM_EDGE_LATITUDES[0] <= lat <= ROOM_EDGE_LATITUDES[1] and ROOM_EDGE_LENGTHS[0] <= piece.length <= ROOM_EDGE_LENGTHS[1]:
+                    horizontal.append((piece, edge))
+            else:  # floor corner to ceiling corner, along a meridian: arc from the start = latitude climbed
+                low, high = edge.start[1], edge.end[1]
+                a = float(gap_start) if low >= -ROOM_MAX_ABS_LAT else -ROOM_MAX_ABS_LAT - low
+                b = edge.length - float(gap_end) if high <= ROOM_MAX_ABS_LAT else ROOM_MAX_ABS_LAT - low
+                if b - a >= ROOM_MIN_VERTICAL:
+                    vertical.append((_sub_line(edge, a, b), edge))
+        n_vertical = int(rng.integers(ROOM_VERTICALS[0], ROOM_VERTICALS[1] + 1))
+        n_horizontal = int(rng.integers(max(ROOM_HORIZONTALS[0], ROOM_LINES[0] - n_vertical), ROOM_LINES[1] - n_vertical + 1))
+        picked: list[tuple[SceneLine, SceneLine]] = []
+        horizontal = [horizontal[i] for i in rng.permutation(len(horizontal))]
+        vertical = [vertical[i] for i in rng.permutation(len(vertical))]
+        _add_apart(picked, horizontal, n_horizontal)
+        if len(picked) < ROOM_HORIZONTALS[0]:
+            continue
+        _add_apart(picked, vertical, max(n_vertical, ROOM_LINES[0] - len(picked)))
+        if len(picked) >= ROOM_LINES[0]:
+            return room, picked
+    raise RuntimeError(f"no room with {ROOM_HORIZONTALS[0]} horizontal edges to mark found in {attempts} draws for seed {seed}")
+
+
+def _add_apart(picked: list[tuple[SceneLine, SceneLine]], candidates: Sequence[tuple[SceneLine, SceneLine]], count: int) -> None:
+    """Append to ``picked`` up to ``count`` candidates, in order, that keep :data:`ROOM_SEPARATION` from every picked line.
+
+    Near a room corner that both edges join (within ``2 * ROOM_SEPARATION`` of it) they may
+    come closer: they meet there.
+    """
+    t = np.linspace(0.0, 1.0, 60)
+    added = 0
+    for piece, edge in candidates:
+        if added == count:
+            return
+        cloud = coords.geodesic(piece.start, piece.end, t)
+        ok = True
+        for other_piece, other in picked:
+            other_cloud = coords.geodesic(other_piece.start, other_piece.end, t)
+            keep, keep_other = np.ones(len(t), dtype=bool), np.ones(len(t), dtype=bool)
+            for corner in (edge.start_3d, edge.end_3d):
+                if any(np.allclose(corner, c, atol=1e-9) for c in (other.start_3d, other.end_3d)):
+                    where = coords.xyz_to_lonlat(np.array(corner))
+                    keep &= coords.angular_distance(cloud, where) > 2 * ROOM_SEPARATION
+                    keep_other &= coords.angular_distance(other_cloud, where) > 2 * ROOM_SEPARATION
+            if coords.angular_distance(cloud[keep][:, None], other_cloud[keep_other][None]).min(initial=np.inf) < ROOM_SEPARATION:
+                ok = False
+                break
+        if ok:
+            picked.append((piece, edge))
+            added += 1
+
+
+# --- the detector's suggestions (family "suggested") -------------------------------------
+
+
+def _suggested_scene(rng: np.random.Generator, seed: int, width: int) -> tuple[Scene, Handles, dict[str, Any]]:
+    """The ``"suggested"`` family's scene, handles and truth (:func:`family_scene`)."""
+    from ..detect.lines import suggest_lines, suggestions_to_handles
+    from ..document.handles import Options
+
+    room = _room_parameters(rng)
+    max_lines = int(rng.integers(SUGGESTED_LINES[0], SUGGESTED_LINES[1] + 1))
+    scene = synthetic_room(width, **room)
+    key = (tuple(sorted(room.items())), max_lines)
+    suggestions = _SUGGESTIONS.get(key)
+    if suggestions is None:
+        image = scene.image if width == SUGGESTED_WIDTH else synthetic_room(SUGGESTED_WIDTH, **room).image
+        suggestions = tuple(suggest_lines(image, max_lines=max_lines))
+        if len(_SUGGESTIONS) >= _SUGGESTIONS_KEPT:
+            del _SUGGESTIONS[next(iter(_SUGGESTIONS))]
+        _SUGGESTIONS[key] = suggestions
+    handles = suggestions_to_handles(suggestions, Options())
+    matched: list[tuple[SceneLine, SceneLine]] = []
+    indices: list[int] = []
+    for i, s in enumerate(suggestions):
+        parent = match_line(scene.lines, s.start, s.end)
+        if parent is not None:
+            matched.append((_span_on(parent, s.start, s.end), parent))
+            indices.append(i)
+    truth = _line_truth("suggested", seed, matched, indices)
+    truth["unmatched_handles"] = [i for i in range(len(suggestions)) if i not in indices]
+    truth["max_lines"] = max_lines
+    return scene, handles, truth
+
+
+def match_line(lines: Sequence[SceneLine], start: ArrayLike, end: ArrayLike) -> SceneLine | None:
+    """The scene line an arc lies on, as the detector's tests decide it, or None.
+
+    The arc from ``start`` to ``end`` lies on a line when at least :data:`SUGGESTED_SHARE`
+    of its samples (41, evenly spread) are within :data:`SUGGESTED_TOLERANCE` degrees of
+    the line's arc (:meth:`SceneLine.distance`); of several such lines, the one with the
+    most samples that close, then the smallest mean distance, is returned.
+
+    Parameters
+    ----------
+    lines : sequence of SceneLine
+    start, end : array_like, shape (2,)
+        ``[lon, lat]`` in degrees.
+
+    Returns
+    -------
+    SceneLine or None
+    """
+    samples = coords.geodesic(start, end, np.linspace(0.0, 1.0, _SUGGESTED_SAMPLES))
+    best, best_key = None, (SUGGESTED_SHARE, -math.inf)
+    for line in lines:
+        d = line.distance(samples)
+        key = (float(np.mean(d <= SUGGESTED_TOLERANCE)), -float(np.mean(d)))
+        if key >= best_key:
+            best, best_key = line, key
+    return best
+
+
+def _span_on(line: SceneLine, start: ArrayLike, end: ArrayLike) -> SceneLine:
+    """The part of ``line`` an arc from ``start`` to ``end`` spans: its ends' feet on the line's great circle, kept within the line."""
+    p, q = np.array(line.start_3d), np.array(line.end_3d)
+    u = p / np.linalg.norm(p)
+    v = q - np.dot(q, u) * u
+    v /= np.linalg.norm(v)
+    total = math.atan2(float(np.dot(q, v)), float(np.dot(q, u)))
+    ends = []
+    for direction in coords.lonlat_to_xyz(np.array([start, end], dtype=np.float64)):
+        phi = float(np.clip(math.atan2(float(direction @ v), float(direction @ u)), 0.0, total))
+        ends.append(_ray_meets_line(math.cos(phi) * u + math.sin(phi) * v, p, q))
+    return _scene_line(ends[0], ends[1], line.kind, line.faces)
 
 
 def _room_parameters(rng: np.random.Generator) -> dict[str, Any]:
