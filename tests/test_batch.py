@@ -296,7 +296,7 @@ def test_the_command_line_runs_on_the_cluster(client, files, local, tmp_path, ca
     out = tmp_path / "out"
     assert _run_cli("warp", files / "a.jpg", files / "b.png", "-H", files / "h.json", "-o", out, "--dask", address) == 0
     assert _written(out) == _expected(local, ("a.jpg", "b.png"))
-    assert f"warped 2 of 2 file(s) on the Dask cluster at {address}" in capsys.readouterr().out
+    assert f"warped 2 of 2 file(s) on the Dask cluster at {address}" in capsys.readouterr().err  # the closing line
 
     # a broken input: the others are written, the error names it, the exit status says it
     code = _run_cli("warp", files / "c.jpg", files / "broken.jpg", "-H", files / "h.json", "-o", tmp_path / "bad", "--dask", address)

@@ -73,7 +73,7 @@ def test_level_makes_the_vertical_edges_vertical_and_the_map_reproduces_the_outp
         str(files / "level.json"),
     ]
     assert main(argv) == 0
-    out = capsys.readouterr().out
+    out = capsys.readouterr().err  # the closing line (tests/test_cli_report.py checks its words)
     assert out.count("\n") == 1 and "pitch" in out and "roll" in out and "vertical edges" in out, out
     assert sorted(p.name for p in files.iterdir()) == ["level.json", "level.png", "map.npy", "room.png"]  # no temporary files
 
@@ -126,10 +126,10 @@ def test_level_refuses_a_panorama_without_vertical_edges(tmp_path, capsys):
 
 def test_suggest_writes_line_handles_that_lie_on_the_room_s_edges(files, room, capsys):
     assert main(["suggest", str(files / "room.png"), "-o", str(files / "lines.json"), "--max-lines", "25"]) == 0
-    out = capsys.readouterr().out
+    out = capsys.readouterr().err
     doc = load_handles(files / "lines.json")  # the loader validates it
     lines = doc.handles
-    assert out.strip() == f"suggested {len(lines)} line(s); wrote {files / 'lines.json'}"
+    assert out.startswith(f"omniwidget suggest: wrote {files / 'lines.json'} ({len(lines)} line(s), the best of "), out
     assert 10 <= len(lines) <= 25 and all(isinstance(h, LineHandle) for h in lines)
     distances = []
     for h in lines:
@@ -144,13 +144,13 @@ def test_suggest_writes_line_handles_that_lie_on_the_room_s_edges(files, room, c
 
 def test_suggest_with_level_adds_the_level_handle(files, capsys):
     assert main(["suggest", str(files / "room.png"), "-o", str(files / "both.json"), "--max-lines", "10", "--level"]) == 0
-    out = capsys.readouterr().out
+    out = capsys.readouterr().err
     doc = load_handles(files / "both.json")
     (level,) = [h for h in doc.handles if h.id == "level"]
     rest = [h for h in doc.handles if h is not level]
     assert isinstance(level, PointHandle) and doc.options.anchor is None
     assert rest and all(isinstance(h, LineHandle) for h in rest)
-    assert f"suggested {len(rest)} line(s) and the level handle" in out and out.count("\n") == 1
+    assert f"({len(rest)} line(s), the best of " in out and "; and the level handle: pitch " in out and out.count("\n") == 1, out
 
 
 def test_bad_input_gives_one_line_and_exit_2(files, capsys):

@@ -156,7 +156,7 @@ def test_a_bad_frame_among_good_ones_is_reported_and_the_rest_written(tmp_path, 
     whole = (frames / "f1.jpg").read_bytes()
     (frames / "f1.jpg").write_bytes(whole[: len(whole) // 2])
     (tmp_path / "h.json").write_text(json.dumps(ONE_POINT))
-    code = main(["warp", *(str(frames / f"f{i}.jpg") for i in range(3)), "-H", str(tmp_path / "h.json"), "-o", str(tmp_path / "out")])
+    code = main(["warp", *(str(frames / f"f{i}.jpg") for i in range(3)), "-H", str(tmp_path / "h.json"), "-o", str(tmp_path / "out"), "-q"])
     err = capfd.readouterr().err.splitlines()
     assert code == 2
     assert (
@@ -300,11 +300,11 @@ def test_fit_through_the_command_line(tmp_path, capfd):
         f"omniwidget warp: error: {tmp_path / 'band.png'}: an equirectangular panorama is twice as wide as high, got 256 x 64; "
     )
     assert "--fit" in err and err.count("\n") == 1 and not (tmp_path / "out.png").exists()
-    assert main([*argv, "--fit", "pad"]) == 0
+    assert main([*argv, "--fit", "pad", "-q"]) == 0
     out = read_image(tmp_path / "out.png")
     expected = warp(to_equirectangular(band, "pad"), Handles.from_dict(ONE_POINT)).image
     np.testing.assert_array_equal(out, expected)
-    assert main([*argv, "--fit", "stretch", "-o", str(tmp_path / "stretched.png")]) == 0
+    assert main([*argv, "--fit", "stretch", "-o", str(tmp_path / "stretched.png"), "-q"]) == 0
     assert read_image(tmp_path / "stretched.png").shape == (128, 256, 3)
     write_image(tmp_path / "tall.png", band.transpose(1, 0, 2))
     assert main(["warp", str(tmp_path / "tall.png"), "-H", str(tmp_path / "h.json"), "-o", str(tmp_path / "t.png"), "--fit", "pad"]) == 2
@@ -363,7 +363,7 @@ def test_depth_and_alpha_survive_the_command_line(tmp_path, capfd, suffix, dtype
     write_image(source, image)
     before = _digest(source)
     (tmp_path / "h.json").write_text(json.dumps(ONE_POINT))
-    assert main(["warp", str(source), "-H", str(tmp_path / "h.json"), "-o", str(tmp_path / f"out{suffix}")]) == 0
+    assert main(["warp", str(source), "-H", str(tmp_path / "h.json"), "-o", str(tmp_path / f"out{suffix}"), "-q"]) == 0
     assert _digest(source) == before
     out = read_image(tmp_path / f"out{suffix}")
     expected = warp(image, Handles.from_dict(ONE_POINT)).image
@@ -480,7 +480,7 @@ def test_a_camera_portrait_turned_by_exif_is_a_panorama(tmp_path, capfd):
     np.testing.assert_array_equal(portrait, np.rot90(read_image(tmp_path / "stored.jpg"), -1))
     assert np.abs(portrait.astype(int) - shown).mean() < 5  # JPEG's loss on strong colour gradients
     (tmp_path / "h.json").write_text(json.dumps(ONE_POINT))
-    assert main(["warp", str(tmp_path / "portrait.jpg"), "-H", str(tmp_path / "h.json"), "-o", str(tmp_path / "o.png")]) == 0
+    assert main(["warp", str(tmp_path / "portrait.jpg"), "-H", str(tmp_path / "h.json"), "-o", str(tmp_path / "o.png"), "-q"]) == 0
     assert read_image(tmp_path / "o.png").shape == (32, 64, 3) and capfd.readouterr().err == ""
 
 

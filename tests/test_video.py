@@ -324,8 +324,10 @@ def test_the_command_runs_as_a_program_with_a_saved_map_and_gives_the_same_video
         timeout=300,
     )
     assert run.returncode == 0, run.stderr
-    assert f"warped {FRAMES} frame(s) to 512 x 256" in run.stdout and "1 audio stream(s) copied" in run.stdout
-    assert f"{FRAMES}/{FRAMES} frames" in run.stderr.splitlines()[-1]  # --progress: lines on a pipe, the last one complete
+    *progress, closing = run.stderr.splitlines()
+    assert closing.startswith(f"omniwidget warp: wrote {out} ({FRAMES} frame(s) of 512 x 256) in ") and "1 audio stream(s) copied" in closing
+    assert f"{FRAMES}/{FRAMES} frames" in progress[-1]  # --progress: lines on a pipe, the last one complete
+    assert closing.endswith(f"; by the map {warped.map}") and run.stdout == ""
     first, again = _decoded(warped.out), _decoded(out)
     assert all(np.array_equal(a, b) and ta == tb for (ta, a), (tb, b) in zip(first, again, strict=True))
     assert _audio_packets(out) == _audio_packets(clips.v1)
@@ -336,7 +338,7 @@ def test_spherical_adds_the_metadata_to_a_video_without_it(clips, tmp_path, caps
     plain, marked = tmp_path / "plain.mp4", tmp_path / "marked.mp4"
     assert main(["warp", str(clips.plain), "-H", str(clips.handles), "-o", str(plain)]) == 0
     assert main(["warp", str(clips.plain), "-H", str(clips.handles), "-o", str(marked), "--spherical", "--crf", "23", "--preset", "veryfast"]) == 0
-    assert "spherical metadata written" in capsys.readouterr().out
+    assert "spherical metadata written" in capsys.readouterr().err
     assert _spherical_side_data(plain) == []
     (added,) = _spherical_side_data(marked)
     assert added["projection"] == "equirectangular"

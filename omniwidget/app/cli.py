@@ -1,7 +1,10 @@
 """The command line: ``omniwidget warp``, ``level``, ``suggest``, ``demo`` and ``schema``.
 
-Bad input of any kind gives one line on stderr saying what and where, exit status 2, no
-traceback and no output file. Outputs are written whole (temporary file, then rename).
+A successful run ends with one line on stderr saying what was written, its size, the time
+and how the result came out (``--quiet``: nothing). Bad input of any kind gives one line on
+stderr saying what and where, in the command line's words (the option that fixes it), exit
+status 2, no traceback and no output file. Outputs are written whole (temporary file, then
+rename).
 """
 
 from __future__ import annotations
@@ -49,9 +52,17 @@ def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="omniwidget", description="Straighten and edit 360° equirectangular panoramas.")
     parser.add_argument("--version", action="version", version=f"omniwidget {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    quiet = _Parser(add_help=False)
+    quiet.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="print nothing on success: no closing line, no progress bar, no notes (warnings and errors still print)",
+    )
 
     warp = sub.add_parser(
         "warp",
+        parents=[quiet],
         help="warp panoramas by a handles file or a saved map",
         description="Warp one panorama, many frames alike or a 360° video (the map is computed once), by the handles in a JSON file or a saved map.",
     )
@@ -76,7 +87,7 @@ def _parser() -> argparse.ArgumentParser:
         "--dask",
         metavar="SCHEDULER",
         help="run each file (each time range of a video) as a task on a Dask cluster: the scheduler's address (tcp://host:8786) or its scheduler file (.json); "
-        "the paths must name the same files on every worker (pip install 'omniwidget[dask]')",
+        'the paths must name the same files on every worker (the dask extra: pip install ".[dask]" in a clone)',
     )
     warp.add_argument(
         "--fit",
@@ -103,6 +114,7 @@ def _parser() -> argparse.ArgumentParser:
 
     level = sub.add_parser(
         "level",
+        parents=[quiet],
         help="level a panorama taken with a tilted camera",
         description="Find how far the camera was from level (pitch and roll) from the vertical edges in the panorama, "
         "and warp it by the rotation that makes them vertical, as warp does with the level handle.",
@@ -117,6 +129,7 @@ def _parser() -> argparse.ArgumentParser:
 
     suggest = sub.add_parser(
         "suggest",
+        parents=[quiet],
         help="write a handles file of the straight edges found in a panorama",
         description="Find the straight 3D edges in a panorama and write them as line handles (best first), "
         "to edit or to warp with: omniwidget warp INPUT -H handles.json -o OUTPUT.",
@@ -128,7 +141,11 @@ def _parser() -> argparse.ArgumentParser:
     suggest.add_argument("--fit", choices=("pad", "stretch"), help="make a non-2:1 input 2:1 first, as for warp (default: refuse it)")
 
     demo = sub.add_parser(
-        "demo", help="before/after of the bundled panorama", description="Rectify lines of the bundled panorama and write a before/after."
+        "demo",
+        parents=[quiet],
+        help="before/after of the bundled panorama",
+        description="Rectify lines of the bundled panorama and write the result as it is (after.png), the input (before.png) "
+        "and both with the handles drawn (before-handles.png, after-handles.png, and the two stacked in before_after.png).",
     )
     demo.add_argument(
         "-o", "--output-dir", type=Path, default=Path("omniwidget-demo"), help="folder for the pictures (default: ./omniwidget-demo)"
@@ -162,6 +179,150 @@ def _warp_quietly(*args: Any, **kwargs: Any) -> Result:
 
 
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".npy")
+
+#: Samples per output pixel along each line when the closing line measures how straight it came out.
+LINE_SAMPLES_PER_PIXEL = 2
+#: Samples per line piece at least, and in the first pass that measures how long its image is.
+LINE_SAMPLES_MIN = 65
+#: Output pixels a sample may be from where the search put it before the line counts as not shown.
+LINE_FOUND_PX = 0.01
+#: Fixed-point steps of the search for the lines' samples in the output (``Deformation.forward_points`` takes 8).
+LINE_ITERATIONS = 12
+
+
+def _say(args: argparse.Namespace, text: str) -> None:
+    """One line of the command's own on stderr (the closing line, a note), unless ``--quiet``."""
+    if not args.quiet:
+        print(f"omniwidget {args.command}: {text}", file=sys.stderr, flush=True)
+
+
+def _elapsed(args: argparse.Namespace) -> str:
+    """The time since the command started (reading, the work and writing), for the closing line."""
+    return f"{time.perf_counter() - args.started:.2f} s"
+
+
+def _size(image: Any) -> str:
+    return f"{image.shape[1]} x {image.shape[0]}"
+
+
+def _line_straightness(result: Result) -> tuple[float, ...]:
+    """How straight each marked straight segment came out, in output pixels, measured along its whole length.
+
+    Each piece of a line is sampled at least :data:`LINE_SAMPLES_PER_PIXEL` times per output
+    pixel of its image, each sample found in the output through the blend itself (as
+    ``result.forward_points`` finds points, from the piece's own map, all pieces at once),
+    and the samples of each segment (``constraints.chains``: a line cut for its length is
+    one segment) are fitted by one straight line
+    (:func:`omniwidget.evaluate.quality.straightness`, ``fit="best"``). Near the handles the
+    output's pixels are placed by that blend exactly (:mod:`omniwidget.raster.sampled`), so
+    this is how straight the image shows them. It costs a fraction of ``result.quality``
+    (every figure, through the per-pixel map).
+
+    Parameters
+    ----------
+    result : Result
+
+    Returns
+    -------
+    tuple of float
+        One per segment; NaN for one whose samples the search does not find in the output
+        (where the map folds over the line, say).
+    """
+    import math
+
+    import numpy as np
+
+    from ..evaluate.quality import straightness
+    from ..sphere import coords
+
+    width = result.image.shape[1]
+    lines, controls = result.constraints.lines, result.controls
+    pieces, owner = [], []
+    for k, (control, samples) in enumerate(lines):
+        start, end = samples[0], samples[-1]
+        first = controls[control].moebius(coords.geodesic(start, end, np.linspace(0.0, 1.0, LINE_SAMPLES_MIN)))
+        length = float(np.sum(coords.angular_distance(first[:-1], first[1:]))) * width / 360.0
+        n = max(LINE_SAMPLES_MIN, LINE_SAMPLES_PER_PIXEL * math.ceil(length) + 1)
+        pieces.append(coords.geodesic(start, end, np.linspace(0.0, 1.0, n)))
+        owner.append(np.full(n, k))
+    if not pieces:
+        return ()
+    p = coords.lonlat_to_xyz(np.concatenate(pieces))
+    piece = np.concatenate(owner)
+    control_of = np.array([c for c, _ in lines])[piece]
+    maps = {c: controls[c].moebius for c in np.unique(control_of).tolist()}
+
+    def each(xyz: Any, which: Any, inverse: bool) -> Any:
+        out = np.empty_like(xyz)
+        for c, m in maps.items():
+            where = which == c
+            if where.any():
+                out[where] = (m.inverse if inverse else m).apply_xyz(xyz[where])
+        return out
+
+    # the fixed-point steps of Deformation.forward_points, every piece at once, each sample until it is found
+    q = each(p, control_of, inverse=False)
+    miss = np.full(len(p), np.inf)
+    todo = np.arange(len(p))
+    for step_number in range(LINE_ITERATIONS + 1):
+        shown = coords.lonlat_to_xyz(result.inverse_points(coords.xyz_to_lonlat(q[todo])))
+        miss[todo] = np.degrees(np.arccos(np.clip(np.sum(shown * p[todo], axis=-1), -1.0, 1.0))) * width / 360.0
+        keep = miss[todo] > LINE_FOUND_PX
+        todo, shown = todo[keep], shown[keep]
+        if not len(todo) or step_number == LINE_ITERATIONS:
+            break
+        step = each(q[todo], control_of[todo], inverse=True) + (p[todo] - shown)
+        q[todo] = each(step / np.linalg.norm(step, axis=-1, keepdims=True), control_of[todo], inverse=False)
+    found = coords.xyz_to_lonlat(q)
+    found[miss > LINE_FOUND_PX] = np.nan
+    out = []
+    for chain in result.constraints.chains:
+        points = np.concatenate([found[piece == k] for k in chain])
+        out.append(straightness(points, width, fit="best") if np.all(np.isfinite(points)) else math.nan)
+    return tuple(out)
+
+
+def _headline(result: Result) -> str:
+    """How a warp came out, in a few words: its lines' straightness, its fold-over, its warnings.
+
+    Only what is cheap or already computed: the lines as :func:`_line_straightness` measures
+    them, the fold-over the warp found (``result.folds``) and the conflicts it reported
+    (``result.warnings``, printed above the closing line), which name the handles that gave way.
+    """
+    import math
+    import re
+
+    parts = []
+    lines = _line_straightness(result)
+    if lines:
+        worst = max(lines)
+        shown = not any(math.isnan(v) for v in lines)
+        parts.append(f"lines within {max(worst, 0.01):.2g} px" if shown else "a line is not found in the output")
+    area = result.folds.area
+    parts.append(f"fold-over {100 * area:.2g}% of the sphere" if area > 0 else "fold-over 0")
+    if result.warnings:
+        named = list(dict.fromkeys(m for w in result.warnings for m in re.findall(r"handles\[\d+\]", w)))
+        count = len(result.warnings)
+        parts.append(f"{count} warning{'s' if count > 1 else ''} above" + (f" ({', '.join(named)})" if named else ""))
+    else:
+        parts.append("no warnings")
+    return ", ".join(parts)
+
+
+#: What the library's messages say in Python, and the command line's words for it.
+_COMMAND_LINE_WORDS = (
+    (" (omniwidget warp --fit, or omniwidget.to_equirectangular)", ""),
+    ('fit="pad"', "--fit pad"),
+    ('fit="stretch"', "--fit stretch"),
+    (", or drop it (image[..., :-1])", ""),
+)
+
+
+def _as_command_line(message: str) -> str:
+    """A message of the library in the command line's words: the option that fixes it, not the Python argument."""
+    for python, command_line in _COMMAND_LINE_WORDS:
+        message = message.replace(python, command_line)
+    return message
 
 
 def _quiet_opencv() -> None:
@@ -218,12 +379,20 @@ def _warp_one(args: argparse.Namespace) -> None:
     handles = load_handles(args.handles)
     image = read_panorama(source, args.fit)
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
-    for path, data in _warped_outputs(args, image, handles):
+    result, outputs = _warped_outputs(args, image, handles)
+    for path, data in outputs:
         write_bytes(path, data)
+    _say(args, f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; {_headline(result)}")
 
 
-def _warped_outputs(args: argparse.Namespace, image: Any, handles: Any) -> list[tuple[Path, bytes]]:
-    """The output image (and with ``--map`` the inverse map) of ``image`` warped by ``handles``, encoded, not yet written."""
+def _written(outputs: Sequence[tuple[Path, bytes]]) -> str:
+    """The files written, for the closing line: ``a.png``, ``a.png and m.npy``, ``a.png, m.npy and h.json``."""
+    names = [str(path) for path, _ in outputs]
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
+def _warped_outputs(args: argparse.Namespace, image: Any, handles: Any) -> tuple[Result, list[tuple[Path, bytes]]]:
+    """``image`` warped by ``handles``, and the output image (with ``--map`` the inverse map too) encoded, not yet written."""
     from ..io.images import encode_image
 
     result = _warp_quietly(image, handles, width=args.width, order=args.order)
@@ -231,7 +400,7 @@ def _warped_outputs(args: argparse.Namespace, image: Any, handles: Any) -> list[
     outputs = [(args.output, encode_image(args.output, result.image))]
     if args.map is not None:
         outputs.append((args.map, encode_image(args.map, result.inverse_map())))  # .npy: the float32 array as it is
-    return outputs
+    return result, outputs
 
 
 def _frame_outputs(args: argparse.Namespace) -> list[Path]:
@@ -281,30 +450,36 @@ def _warp_frames(args: argparse.Namespace) -> None:
     first = read_panorama(args.input[0], args.fit)
     check_format(outputs[0], first[:0])  # the folder may not exist yet
     start = time.perf_counter()
+    result: Result | None = None
     if saved is not None:
         if args.width is not None and args.width != saved.shape[1]:
             raise ImageError(f"--width {args.width}: the map {args.apply_map} makes frames {saved.shape[1]} wide")
         inverse_map = saved
     else:
-        inverse_map = _warp_quietly(first, handles, width=args.width, order=args.order).inverse_map()
+        result = _warp_quietly(first, handles, width=args.width, order=args.order)
+        inverse_map = result.inverse_map()
     coordinates = map_coordinates(inverse_map, first.shape[1])
     map_seconds = time.perf_counter() - start
     if args.map is not None:
         write_image(args.map, inverse_map)
     if len(outputs) > 1:
         args.output.mkdir(exist_ok=True)
-    progress = _progress_bar if len(outputs) > 1 and (sys.stderr.isatty() or args.progress) else None
+    progress = _progress_bar if len(outputs) > 1 and (args.progress or (sys.stderr.isatty() and not args.quiet)) else None
     report = warp_frames(
         args.input, outputs, coordinates, first.shape[:2], order=args.order, workers=args.workers, progress=progress, fit=args.fit
     )
     h, w = coordinates.shape[:2]
-    print(
-        f"warped {len(report.written)} frame(s) to {w} x {h} in {report.seconds:.2f} s: {report.fps:.1f} frames per second "
-        f"(reading and writing included; the map took {map_seconds:.2f} s)"
+    where = str(outputs[0]) if len(outputs) == 1 else f"{args.output}{'' if str(args.output).endswith('/') else '/'}"
+    also = f" and {args.map}" if args.map is not None else ""
+    how = _headline(result) if result is not None else f"by the map {args.apply_map}"
+    _say(
+        args,
+        f"wrote {len(report.written)} of {len(outputs)} frame(s) to {where}{also} ({w} x {h}) in {_elapsed(args)}: "
+        f"{report.fps:.1f} frames per second (reading and writing included; the map took {map_seconds:.2f} s); {how}",
     )
     if report.failed:
         for _, why in report.failed:
-            print(f"omniwidget warp: error: {why}", file=sys.stderr)
+            print(f"omniwidget warp: error: {_as_command_line(why)}", file=sys.stderr)
         raise _FramesFailed(f"{len(report.failed)} of {len(args.input)} frames were not warped (see above)")
 
 
@@ -330,7 +505,7 @@ def _warp_on_dask(args: argparse.Namespace, videos: bool) -> None:
     saved = load_map(args.apply_map) if args.apply_map is not None else None
     if saved is not None and args.width is not None and args.width != saved.shape[1]:
         raise ImageError(f"--width {args.width}: the map {args.apply_map} makes frames {saved.shape[1]} wide")
-    progress = _progress_bar if len(args.input) > 1 and sys.stderr.isatty() else None
+    progress = _progress_bar if len(args.input) > 1 and (args.progress or (sys.stderr.isatty() and not args.quiet)) else None
     options: dict[str, Any] = {"codec": args.codec, "crf": args.crf, "preset": args.preset, "spherical": True if args.spherical else None}
     if args.segment_seconds is not None:
         if not args.segment_seconds > 0:
@@ -353,10 +528,12 @@ def _warp_on_dask(args: argparse.Namespace, videos: bool) -> None:
         raise OmniwidgetError(str(exc)) from None
     for message in report.warnings:
         print(f"omniwidget: warning: {message}", file=sys.stderr)
-    print(report.summary().splitlines()[0])
+    how = "each worker computed the map, not measured here" if handles is not None else f"by the map {args.apply_map}"
+    done = f"wrote {len(report.written)} of {len(report.files)} file(s) to {args.output} in {_elapsed(args)}"
+    _say(args, f"{done}; {report.summary().splitlines()[0]}; {how}")
     if report.failed:
         for _, why in report.failed:
-            print(f"omniwidget warp: error: {why}", file=sys.stderr)
+            print(f"omniwidget warp: error: {_as_command_line(why)}", file=sys.stderr)
         raise _FramesFailed(f"{len(report.failed)} of {len(report.files)} files were not warped (see above)")
 
 
@@ -423,6 +600,7 @@ def _warp_video(args: argparse.Namespace) -> None:
     if args.width is not None and args.width % 4:
         raise ImageError(f"--width {args.width}: a video's width must be a multiple of 4 (4:2:0 video has even sizes)")
     start = time.perf_counter()
+    result: Result | None = None
     if args.apply_map is not None:
         inverse_map = load_map(args.apply_map)
         if args.width is not None and args.width != inverse_map.shape[1]:
@@ -431,9 +609,10 @@ def _warp_video(args: argparse.Namespace) -> None:
         handles = load_handles(args.handles)
         with VideoReader(source) as video:  # refuses what is no 360° video before any work
             first = video.read_at(video.info.start)
-        inverse_map = _warp_quietly(first, handles, width=args.width, order=args.order).inverse_map()
+        result = _warp_quietly(first, handles, width=args.width, order=args.order)
+        inverse_map = result.inverse_map()
     map_seconds = time.perf_counter() - start
-    progress = _VideoProgress(sys.stderr.isatty()) if sys.stderr.isatty() or args.progress else None
+    progress = _VideoProgress(sys.stderr.isatty()) if args.progress or (sys.stderr.isatty() and not args.quiet) else None
     try:
         report = warp_video(
             source,
@@ -453,15 +632,18 @@ def _warp_video(args: argparse.Namespace) -> None:
     if args.map is not None:
         write_image(args.map, inverse_map)
     for stream in report.dropped:
-        print(f"omniwidget: note: not copied: {stream}", file=sys.stderr)
+        _say(args, f"note: not copied: {stream}")
     w, h = report.size
     settings = ", ".join(f"{k} {v}" for k, v in report.options.items() if k in ("crf", "preset"))
     sound = f"{len(report.audio)} audio stream(s) copied" if report.audio else "no audio"
     metadata = "spherical metadata written" if report.spherical is not None else "no spherical metadata (--spherical writes it)"
-    print(
-        f"warped {report.frames} frame(s) to {w} x {h} in {report.seconds:.2f} s: {report.fps:.1f} frames per second "
+    also = f" and {args.map}" if args.map is not None else ""
+    how = _headline(result) if result is not None else f"by the map {args.apply_map}"
+    _say(
+        args,
+        f"wrote {args.output}{also} ({report.frames} frame(s) of {w} x {h}) in {_elapsed(args)}: {report.fps:.1f} frames per second "
         f"({report.codec} {report.pix_fmt}{', ' + settings if settings else ''}; {sound}; {metadata}; "
-        f"the map took {map_seconds + report.map_seconds:.2f} s)"
+        f"the map took {map_seconds + report.map_seconds:.2f} s); {how}",
     )
 
 
@@ -493,14 +675,15 @@ def _cmd_level(args: argparse.Namespace) -> None:
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
     found = level(image)  # too few vertical edges: a LevelError, one line, nothing written
     handles = found.handles()
-    outputs = _warped_outputs(args, image, handles)
+    result, outputs = _warped_outputs(args, image, handles)
     if args.handles is not None:
         outputs.append((args.handles, (handles.to_json() + "\n").encode()))
     for path, data in outputs:
         write_bytes(path, data)
-    print(
-        f"levelled {args.input.name}: pitch {found.pitch:+.2f}°, roll {found.roll:+.2f}° (tilt {found.tilt:.2f}°) "
-        f"from {len(found.edges)} vertical edges; wrote {', '.join(str(p) for p, _ in outputs)}"
+    _say(
+        args,
+        f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; levelled by pitch {found.pitch:+.2f}°, "
+        f"roll {found.roll:+.2f}° (tilt {found.tilt:.2f}°) from {len(found.edges)} vertical edges; {_headline(result)}",
     )
 
 
@@ -522,15 +705,23 @@ def _cmd_suggest(args: argparse.Namespace) -> None:
     if args.level:
         found = level(image, suggestions=suggestions)  # too few vertical edges: a LevelError, nothing written
         handles = level_document(handles, found.moebius())
-        note = f" and the level handle (pitch {found.pitch:+.2f}°, roll {found.roll:+.2f}°, from {len(found.edges)} vertical edges)"
+        note = f"; and the level handle: pitch {found.pitch:+.2f}°, roll {found.roll:+.2f}° from {len(found.edges)} vertical edges"
     text = handles.to_json() + "\n"
     Handles.from_json(text)  # what is written is what the loader reads back
     write_bytes(args.output, text.encode())
     lines = sum(1 for h in handles.handles if h.kind == "line")
-    print(f"suggested {lines} line(s){note}; wrote {args.output}")
+    more = f", the best of {len(suggestions)} found" if len(suggestions) > lines else ""
+    _say(args, f"wrote {args.output} ({lines} line(s){more}{note}) in {_elapsed(args)}")
 
 
 def _cmd_demo(args: argparse.Namespace) -> None:
+    """``omniwidget demo``: the bundled panorama warped by :data:`DEMO_HANDLES`, as it is and with the handles drawn apart.
+
+    ``after.png`` is the result as ``omniwidget.warp`` gives it and ``before.png`` the input,
+    nothing drawn on either; ``before-handles.png`` and ``after-handles.png`` draw the handles
+    (:func:`omniwidget.io.draw.draw_handles`: on the input where they were marked, on the
+    result where their maps put them), and ``before_after.png`` stacks those two.
+    """
     import numpy as np
 
     from ..data import sample_image
@@ -542,17 +733,25 @@ def _cmd_demo(args: argparse.Namespace) -> None:
     out.mkdir(parents=True, exist_ok=True)
     image = sample_image()
     handles = Handles.from_dict(DEMO_HANDLES)
-    start = time.perf_counter()
     result = _warp_quietly(image, handles)
-    seconds = time.perf_counter() - start
     before = draw_handles(image, handles, stage="input")
     after = draw_handles(result.image, handles, stage="output")
     gap = np.full((8, image.shape[1], 3), 255, np.uint8)
+    pictures = {
+        "before.png": image,  # the bundled panorama as it is
+        "after.png": result.image,  # the result as it is, nothing drawn on it
+        "before-handles.png": before,
+        "after-handles.png": after,
+        "before_after.png": np.concatenate([before, gap, after]),
+    }
     save_handles(handles, out / "handles.json")
-    write_image(out / "before.png", before)
-    write_image(out / "after.png", after)
-    write_image(out / "before_after.png", np.concatenate([before, gap, after]))
-    print(f"rectified {len(handles)} handle(s) in {seconds:.3f} s; wrote {out}/before.png, after.png, before_after.png, handles.json")
+    for name, picture in pictures.items():
+        write_image(out / name, picture)
+    _say(
+        args,
+        f"wrote {out / 'after.png'} ({_size(result.image)}), the handles drawn apart ({', '.join(list(pictures)[2:])}), "
+        f"before.png and handles.json in {_elapsed(args)}; {_headline(result)}",
+    )
 
 
 def _cmd_schema(args: argparse.Namespace) -> None:
@@ -568,10 +767,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     from ..errors import OmniwidgetError
 
     args = _parser().parse_args(argv)
+    args.started = time.perf_counter()
     try:
         {"warp": _cmd_warp, "level": _cmd_level, "suggest": _cmd_suggest, "demo": _cmd_demo, "schema": _cmd_schema}[args.command](args)
     except OmniwidgetError as exc:
-        print(f"omniwidget {args.command}: error: {exc}", file=sys.stderr)
+        print(f"omniwidget {args.command}: error: {_as_command_line(str(exc))}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as exc:
         print(f"omniwidget {args.command}: error: {exc}", file=sys.stderr)
