@@ -3,7 +3,7 @@
 The package is layered as the paper reads: :mod:`omniwidget.sphere` (directions, Möbius
 maps), :mod:`omniwidget.document` (the handles), :mod:`omniwidget.method` (controls, the
 Sec. 3.4 solve, mesh, bounded biharmonic weights), :mod:`omniwidget.raster` (the per-pixel
-engine), :mod:`omniwidget.evaluate`, :mod:`omniwidget.detect` (suggested lines, levelling),
+engine), :mod:`omniwidget.detect` (suggested lines, levelling), :mod:`omniwidget.evaluate`,
 :mod:`omniwidget.io`, :mod:`omniwidget.app`, then the widget and the pane; each imports only
 the layers before it. The core needs only numpy,
 scipy and OpenCV; importing :mod:`omniwidget` loads nothing more (the notebook editor,

@@ -137,8 +137,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("document", ("omniwidget.document",)),
     ("method", ("omniwidget.method",)),
     ("raster", ("omniwidget.raster",)),
+    ("detect", ("omniwidget.detect",)),  # below evaluate: the "suggested" scene family is the detector's own lines
     ("evaluate", ("omniwidget.evaluate",)),
-    ("detect", ("omniwidget.detect",)),
     ("io", ("omniwidget.io", "omniwidget.data")),
     ("app", ("omniwidget.app", "omniwidget.batch")),
     ("widget and pane", ("omniwidget.widget", "omniwidget.viz", "omniwidget.__main__")),

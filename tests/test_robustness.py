@@ -291,10 +291,11 @@ GEO_W = 512
 FOLD_WARNING = "folds over"
 #: README (Odd geometry): fixed cages hold still, < 1e-12 px; measured 3.0e-14 to 8.3e-14 px at 512.
 FIXED_CAGE_PX = 1e-12
-#: README (Odd geometry): lines that cross, touch, overlap or repeat, and a 179° line, come out straight:
-#: the worst line within 0.02 px at 512 in the default mode (measured 0.004-0.020 px: its pieces are cut to
-#: 0.02° = 0.028 px) and 0.10 px in the paper's (measured 0.038-0.100 px). The bounds are 2.5x and 2x those.
-STRAIGHT_PX = {"default": 0.05, "paper": 0.2}
+#: README (Odd geometry): lines that cross, touch, overlap or repeat, and a 179° line, come out straight,
+#: measured densely along their whole arcs (``Result.quality``): the worst line at 512 in the default mode
+#: measured 0.096-0.19 px (at the constrained samples alone it was 0.004-0.020), in the paper's
+#: 0.038-0.100 px at the samples. The bounds are about 1.3x and 2x those.
+STRAIGHT_PX = {"default": 0.25, "paper": 0.2}
 
 
 #: Each odd geometry's quality figures, written to test-artifacts/odd_geometry.json (for the README).
@@ -489,10 +490,13 @@ def test_duplicate_points_and_a_line_shorter_than_a_pixel(room):
 
 
 @pytest.mark.parametrize("mode", ["default", "paper"])
-def test_a_line_of_179_degrees_comes_out_straight_and_antipodal_ends_are_refused(room, mode):
+def test_a_line_of_179_degrees_is_straight_in_the_default_mode_and_antipodal_ends_are_refused(room, mode):
     result, figures = _warp(room, _doc(_line((-89.0, 0.0), (90.0, 0.5)), _line((0.0, 40.0), (30.0, 45.0)), mode=mode))
-    # measured 0.008 px (default: cut into pieces) and 0.038 px (the paper's one map) at 512
-    assert len(figures.lines) == 2 and figures.straightness <= STRAIGHT_PX[mode], (mode, figures.lines)
+    assert len(figures.lines) == 2, figures.lines
+    if mode == "default":  # cut into pieces: measured 0.112 px along its whole arc at 512
+        assert figures.straightness <= STRAIGHT_PX[mode], figures.lines
+    else:  # the paper's one map is straight at its 50 samples only: between them it bends, measured 11.7 px at 512
+        assert figures.lines[0] > 5.0, figures.lines
     with pytest.raises(HandlesError, match=r"handles\[0\].end: start and end are antipodal"):
         Handles.from_dict(_doc(_line((-90.0, 0.0), (90.0, 0.0))))
 

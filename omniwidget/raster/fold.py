@@ -18,7 +18,7 @@ from ..sphere import coords
 from . import _kernels
 from .warping import coordinates_lonlat
 
-__all__ = ["FoldOver", "fold_of_coordinates", "fold_over"]
+__all__ = ["FoldOver", "fold_of_coordinates", "fold_over", "turned_over"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,17 +77,35 @@ def fold_over(inverse_map: ArrayLike, pole_margin: float = 1.0) -> FoldOver:
     FoldOver
     """
     m = check_inverse_map(inverse_map, np.float32 if np.asarray(inverse_map).dtype == np.float32 else np.float64)
-    lon, lat = m[..., 0], m[..., 1]
+    mask = np.zeros(m.shape[:2], dtype=bool)
+    mask[1:-1] = turned_over(np.concatenate([m[:, -1:], m, m[:, :1]], axis=1), pole_margin)  # columns wrap at the seam
+    return FoldOver.from_mask(mask)
+
+
+def turned_over(lonlat: NDArray[np.floating], pole_margin: float = 1.0) -> NDArray[np.bool_]:
+    """The rule of :func:`fold_over` on any window of an inverse map: its inner pixels whose determinant is <= 0.
+
+    Parameters
+    ----------
+    lonlat : ndarray, shape (h, w, 2)
+        Input ``[lon, lat]`` in degrees on a window of output pixels (rows southwards,
+        columns eastwards), ``h, w >= 3``.
+    pole_margin : float
+        See :func:`fold_over`.
+
+    Returns
+    -------
+    ndarray of bool, shape (h - 2, w - 2)
+        For each pixel not on the window's rim (central differences need both neighbours).
+    """
+    lon, lat = lonlat[..., 0], lonlat[..., 1]
 
     def wrapped(d: NDArray) -> NDArray:
         return (d + 180) % 360 - 180
 
-    d_lon_east = wrapped(np.roll(lon, -1, axis=1) - np.roll(lon, 1, axis=1))[1:-1]
-    d_lat_east = (np.roll(lat, -1, axis=1) - np.roll(lat, 1, axis=1))[1:-1]
-    d_lon_north, d_lat_north = wrapped(lon[:-2] - lon[2:]), lat[:-2] - lat[2:]
-    mask = np.zeros(lon.shape, dtype=bool)
-    mask[1:-1] = (d_lon_east * d_lat_north - d_lon_north * d_lat_east <= 0) & (np.abs(lat[1:-1]) < 90 - pole_margin)
-    return FoldOver.from_mask(mask)
+    d_lon_east, d_lat_east = wrapped(lon[1:-1, 2:] - lon[1:-1, :-2]), lat[1:-1, 2:] - lat[1:-1, :-2]
+    d_lon_north, d_lat_north = wrapped(lon[:-2, 1:-1] - lon[2:, 1:-1]), lat[:-2, 1:-1] - lat[2:, 1:-1]
+    return np.asarray((d_lon_east * d_lat_north - d_lon_north * d_lat_east <= 0) & (np.abs(lat[1:-1, 1:-1]) < 90 - pole_margin))
 
 
 def fold_of_coordinates(coordinates: NDArray[np.float32], src_width: int) -> FoldOver:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any
 
@@ -30,6 +31,7 @@ from . import _kernels
 from .blend import blended_inverse, mesh_pixel_weights
 from .fold import FoldOver, fold_of_coordinates
 from .sampled import coarse_step, sampled_coordinates
+from .untangle import Patch, apply_patches, patched_inverse, untangle
 from .warping import (
     GridInverse,
     Order,
@@ -51,6 +53,8 @@ __all__ = ["FOLD_WARNING_AREA", "BlendWarning", "Result", "blend_coordinates", "
 #: Fold-overs covering at least this share of the sphere are reported as a BlendWarning
 #: (1e-5 is about 20 pixels at 2048 x 1024); smaller ones only show in ``Result.folds``.
 FOLD_WARNING_AREA = 1e-5
+#: Rounds of untangling in the default mode (:func:`_untangled`).
+UNTANGLE_ROUNDS = 3
 
 
 class _measured_once:
@@ -117,7 +121,7 @@ class Result(Deformation):
         (the two agree within a quarter of a pixel, :mod:`omniwidget.raster.sampled`).
         """
         if self.coordinates is None:
-            return self.inverse_map(np.float64)
+            return self._inverse_map  # float64 already (read-only)
         return coordinates_lonlat(self.coordinates, self.source_width)
 
     @_measured_once
@@ -243,7 +247,7 @@ def blend_coordinates(
         laps("blend")
         folds = fold_of_coordinates(coordinates, src_width)
         at_folds: NDArray[np.floating] | None = None
-        if folds.area >= FOLD_WARNING_AREA:
+        if folds.area > 0:
             where = folds.mask if step == 1 else np.asarray(folds.mask.reshape(face.shape[0], step, face.shape[1], step).any(axis=(1, 3)))
             at_folds = _kernels.strongest_weights(where, face, planes, d.faces, d.weights)[None]
     else:
@@ -252,20 +256,43 @@ def blend_coordinates(
         coordinates = remap_coordinates(blended_inverse(inverses, mesh_pixel_weights(d.faces, d.weights, face, bary)), width, src_width)
         laps("blend")
         folds = fold_of_coordinates(coordinates, src_width)
-        at_folds = interpolate(d.weights, d.faces, face[folds.mask], bary[folds.mask]) if folds.area >= FOLD_WARNING_AREA else None
+        at_folds = interpolate(d.weights, d.faces, face[folds.mask], bary[folds.mask]) if folds.area > 0 else None
     laps("fold check")
     return coordinates, folds, at_folds
 
 
-def _fold_warning(handles: Handles, controls: tuple[Control, ...], pixel_weights: NDArray, area: float) -> str:
-    """Name the handles whose weights are strong where the output folds, (pixels, k) weights."""
+def _fold_warning(
+    handles: Handles, controls: tuple[Control, ...], pixel_weights: NDArray, area: float, patches: Sequence[Patch] = (), width: int = 0
+) -> str:
+    """Name the handles whose weights are strong where the blend folded, (pixels, k) weights, and what became of it."""
     strong = np.flatnonzero(pixel_weights.max(axis=0) >= 0.1)
     involved = sorted({controls[j].handle for j in strong} - {BACKGROUND})
-    names = [f"handles[{i}] ({handles.handles[i].kind})" for i in involved]
+    names = " and ".join(f"handles[{i}] ({handles.handles[i].kind})" for i in involved) or "the still background"
+    if patches and area == 0:
+        moved = max(p.moved for p in patches)
+        return (
+            f"the blend folded over near {names}; untangled in {len(patches)} window{'s' * (len(patches) > 1)}, where "
+            f"their maps give way by up to {moved * width / 360:.2g} px ({moved:.2g}°): the warp is one-to-one"
+        )
     return (
-        f"the warp folds over near {' and '.join(names)}: {100 * area:.3g}% of the sphere is shown turned over "
+        f"the warp folds over near {names}: {100 * area:.3g}% of the sphere is shown turned over "
         "(Result.folds.mask shows where); their targets conflict, move them apart"
     )
+
+
+def _untangled(coordinates: NDArray[np.float32], folds: FoldOver, src_width: int) -> tuple[NDArray[np.float32], FoldOver, list[Patch]]:
+    """The coordinates with every turned-over patch untangled (:mod:`.untangle`), their fold check, and the windows."""
+    patches: list[Patch] = []
+    for _ in range(UNTANGLE_ROUNDS):  # a window that met another's is untangled again in the next round
+        found = untangle(coordinates, folds.mask, src_width)
+        if not found:
+            break
+        coordinates = apply_patches(coordinates, found, src_width)
+        patches += found
+        folds = fold_of_coordinates(coordinates, src_width)
+        if folds.area == 0:
+            break
+    return coordinates, folds, patches
 
 
 def warp(
@@ -330,12 +357,16 @@ def warp(
         laps("resampling")
     else:
         coordinates, folds, at_folds = blend_coordinates(d, width, image.shape[1], exact=exact, timings=timings)
-        inverse = _exact_inverse([c.moebius.inverse for c in d.controls], d.vertices, d.faces, d.weights, width)
+        patches: list[Patch] = []
         laps = Laps(timings)
+        if folds.area > 0 and handles.options.anchor is not None:  # the default mode never folds
+            coordinates, folds, patches = _untangled(coordinates, folds, image.shape[1])
+            laps("untangle")
+        inverse = patched_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], d.vertices, d.faces, d.weights, width), patches)
         out = remap(pad_panorama(image), coordinates, order)
         laps("resampling")
-        if at_folds is not None:
-            problems.append(_fold_warning(handles, d.controls, at_folds, folds.area))
+        if at_folds is not None and (patches or folds.area >= FOLD_WARNING_AREA):
+            problems.append(_fold_warning(handles, d.controls, at_folds, folds.area, patches, width))
     for p in problems if warn else ():
         warnings.warn(p, BlendWarning, stacklevel=2)
     kept = {f.name: getattr(d, f.name) for f in fields(Deformation)}

@@ -15,7 +15,7 @@ import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -190,7 +190,7 @@ def remap_coordinates(fn: GridInverse, width: int, src_width: int, offset: float
 
 def coordinates_lonlat(
     coordinates: NDArray[np.float32], src_width: int, dtype: type[np.floating] = np.float64, offset: float = PAD
-) -> NDArray[np.floating]:
+) -> NDArray[Any]:
     """The inverse map ``[lon, lat]`` (degrees) of source pixel coordinates: :func:`remap_coordinates` undone.
 
     Parameters
@@ -252,8 +252,9 @@ def remap(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bili
     interpolation = {"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR, "bicubic": cv2.INTER_CUBIC}[order]
     if image.ndim == 3 and image.shape[2] == 2:  # OpenCV samples two channels on a coarser grid (1/32 pixel): one at a time
         return np.dstack([remap(np.ascontiguousarray(image[..., k]), coordinates, order) for k in range(2)])
-    # the stub wants a map2, but None is OpenCV's documented empty map2 (one (x, y) map)
-    out = cv2.remap(image, coordinates, None, interpolation, borderMode=cv2.BORDER_REPLICATE)  # type: ignore[call-overload]
+    # None is OpenCV's documented empty map2 (one (x, y) map); OpenCV 4's stub wants an array there, 5's does not
+    remap_fn: Any = cv2.remap
+    out = remap_fn(image, coordinates, None, interpolation, borderMode=cv2.BORDER_REPLICATE)
     if image.ndim == 3 and out.ndim == 2:  # OpenCV drops a single channel axis
         out = out[..., None]
     return out

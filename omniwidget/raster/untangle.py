@@ -1,0 +1,354 @@
+"""No fold-over, ever: where a blend turns the image over, the map is untangled there.
+
+The blend of eq. (2) is not guaranteed one-to-one (the paper's Sec. 5 and Fig. 15): where
+the handles' maps disagree and their weights change fast, part of the sphere is shown
+turned over. :func:`untangle` finds each turned-over patch of the output grid (the same
+rule as :func:`~omniwidget.raster.fold.fold_over`), takes a window around it whose rim the
+blend shows one-to-one, and replaces the map inside by a piecewise-linear map on a grid of
+the window's pixels that agrees with the blend on the rim and turns no triangle over: the
+untangling of Garanzha, Kaporin, Kudryavtseva, Protais, Ray and Sokolov, "Foldover-free
+maps in 50 lines of code" (ACM Trans. Graph. 40(4), 2021), whose regularised energy
+(their eq. 2-3, with the barrier ``χ(D, ε) = (D + sqrt(ε² + D²)) / 2``) is minimised while
+``ε`` shrinks until every triangle's Jacobian determinant is positive, and then once more
+for the distortion. Every handle keeps its map outside the windows; a handle whose
+samples fall inside one gives way there (:attr:`Patch.moved` says how far the map moved).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..sphere import coords
+from .fold import turned_over
+from .warping import PAD, GridInverse, coordinates_lonlat
+
+__all__ = ["MARGIN", "Patch", "apply_patches", "patched_inverse", "untangle"]
+
+#: Pixels of clean map kept around a turned-over patch at the first try (then doubled).
+MARGIN = 6
+#: The most vertices along a side of a window's grid; larger windows take a coarser grid.
+GRID_SIDE = 48
+#: A window reaches this many times the turned-over patch's size beyond it (at least :data:`MARGIN`), so that the
+#: untangled map has room to spread what it gathers.
+SPREAD = 1.0
+#: Tries per patch, each with twice the margin of the one before.
+TRIES = 4
+#: Weight of the area term against the shape term in the untangling energy (their ``λ``).
+AREA_WEIGHT = 0.5
+
+
+@dataclass(frozen=True, eq=False)
+class Patch:
+    """One window of the output grid where the map was untangled.
+
+    Attributes
+    ----------
+    rows : slice
+        Output rows of the window.
+    cols : ndarray of int64, shape (w,)
+        Its output columns, in order (they wrap at the seam).
+    xyz : ndarray of float64, shape (h, w, 3)
+        The source direction each pixel of the window shows, untangled.
+    moved : float
+        The largest angle between the untangled map and the blend inside the window,
+        degrees: how far the handles whose maps meet there gave way.
+    """
+
+    rows: slice
+    cols: NDArray[np.int64]
+    xyz: NDArray[np.float64]
+    moved: float
+
+
+def untangle(coordinates: NDArray[np.float32], mask: NDArray[np.bool_], src_width: int) -> list[Patch]:
+    """Windows that replace the map where it turns the image over, each one-to-one.
+
+    Parameters
+    ----------
+    coordinates : ndarray of float32, shape (H, W, 2)
+        Source pixel coordinates a warp resamples by (padded by
+        :data:`~omniwidget.raster.warping.PAD`).
+    mask : ndarray of bool, shape (H, W)
+        Where the map turns over (``FoldOver.mask``).
+    src_width : int
+        Width of the source.
+
+    Returns
+    -------
+    list of Patch
+        One per turned-over patch (patches whose windows meet are untangled together);
+        empty when nothing turns over. A patch the untangling could not clear within
+        :data:`TRIES` windows is left out, and the fold check after it still shows it.
+    """
+    from scipy import ndimage
+
+    height, width = mask.shape
+    if not mask.any():
+        return []
+    # work on columns shifted so that the seam runs where nothing turns over
+    clear = np.flatnonzero(~mask.any(axis=0))
+    shift = int(clear[0]) if len(clear) else 0
+    rolled = np.roll(mask, -shift, axis=1)
+    # patches closer than the margin are untangled in one window
+    near = ndimage.binary_dilation(rolled, structure=np.ones((3, 3), bool), iterations=MARGIN)
+    labels, _ = ndimage.label(near, structure=np.ones((3, 3), bool))
+    boxes = [b for b in ndimage.find_objects(labels) if b is not None]
+    lonlat = coordinates_lonlat(coordinates, src_width)
+    patches: list[Patch] = []
+    # (the boxes were grown by MARGIN to merge neighbours; each try grows them by its margin more)
+    taken = np.zeros_like(rolled)
+    for box in sorted(boxes, key=lambda b: -(b[0].stop - b[0].start) * (b[1].stop - b[1].start)):
+        if taken[box].all():
+            continue
+        margin = max(MARGIN, round(SPREAD * max(box[0].stop - box[0].start, box[1].stop - box[1].start)))
+        for _ in range(TRIES):
+            r0, r1 = max(box[0].start - margin, 0), min(box[0].stop + margin, height)
+            c0, c1 = box[1].start - margin, box[1].stop + margin
+            if c1 - c0 >= width:
+                break
+            cols = (np.arange(c0, c1) + shift) % width
+            patch = _untangle_window(lonlat, rolled_mask_window(mask, slice(r0, r1), cols), slice(r0, r1), cols, width)
+            if patch is not None:
+                patches.append(patch)
+                taken[r0:r1, max(c0, 0) : min(c1, width)] = True
+                break
+            margin *= 2
+    return patches
+
+
+def rolled_mask_window(mask: NDArray[np.bool_], rows: slice, cols: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """The fold mask on a window of rows and (wrapping) columns."""
+    return mask[rows][:, cols]
+
+
+def _untangle_window(
+    lonlat: NDArray[np.float64], folded: NDArray[np.bool_], rows: slice, cols: NDArray[np.int64], width: int
+) -> Patch | None:
+    """Untangle the map on one window; None when its rim is not clean or the result still folds."""
+    height = lonlat.shape[0]
+    h, w = rows.stop - rows.start, len(cols)
+    # the rim must be shown one-to-one (poles aside: there the window ends at the grid's edge)
+    rim = np.zeros((h, w), bool)
+    rim[[0, -1], :], rim[:, [0, -1]] = True, True
+    if rows.start == 0:
+        rim[0] = False
+    if rows.stop == height:
+        rim[-1] = False
+    if (folded & _dilate(rim)).any() or h < 3 or w < 3:
+        return None
+    step = max(1, math.ceil(max(h, w) / GRID_SIDE))
+    gy = _grid_positions(h, step)
+    gx = _grid_positions(w, step)
+    window = lonlat[rows][:, cols]
+    source = coords.lonlat_to_xyz(window)  # (h, w, 3)
+    centre = source.reshape(-1, 3).sum(axis=0)
+    centre /= np.linalg.norm(centre)
+    if np.any(source @ centre <= 0.2):  # wider than a hemisphere's middle: no chart holds it
+        return None
+    s_east, s_north = _frame(centre)
+    out_lonlat = np.stack(np.meshgrid(coords.grid_lonlat(width)[0][cols], coords.grid_lonlat(width)[1][rows]), axis=-1)
+    out_xyz = coords.lonlat_to_xyz(out_lonlat)
+    o_centre = out_xyz[h // 2, w // 2]
+    o_east, o_north = _frame(o_centre)
+    ref = _chart(out_xyz[np.ix_(gy, gx)], o_centre, o_east, o_north)  # (gh, gw, 2)
+    start = _chart(source[np.ix_(gy, gx)], centre, s_east, s_north)
+    fixed = np.zeros(start.shape[:2], bool)
+    fixed[[0, -1], :], fixed[:, [0, -1]] = True, True
+    triangles = _triangles(*start.shape[:2])
+    solved = _foldover_free(ref.reshape(-1, 2), start.reshape(-1, 2), triangles, fixed.ravel())
+    if solved is None:
+        return None
+    solved = solved.reshape(start.shape)
+    # every pixel of the window from its grid cell (the same two triangles a cell)
+    uv = _interpolate(solved, gy, gx, h, w)
+    xyz = centre + uv[..., :1] * s_east + uv[..., 1:] * s_north
+    xyz /= np.linalg.norm(xyz, axis=-1, keepdims=True)
+    # the rows and columns of the rim keep the blend exactly (the grid interpolates between rim vertices)
+    xyz[[0, -1], :], xyz[:, [0, -1]] = source[[0, -1], :], source[:, [0, -1]]
+    if turned_over(coords.xyz_to_lonlat(xyz)).any():
+        return None
+    moved = float(np.degrees(np.arccos(np.clip(np.sum(xyz * source, axis=-1), -1.0, 1.0))).max())
+    return Patch(rows, cols.astype(np.int64), xyz, moved)
+
+
+def _dilate(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    from scipy import ndimage
+
+    return np.asarray(ndimage.binary_dilation(mask, structure=np.ones((3, 3), bool)))
+
+
+def _grid_positions(n: int, step: int) -> NDArray[np.int64]:
+    """Grid lines every ``step`` pixels from 0 to ``n - 1``, the last one at ``n - 1``."""
+    out = np.arange(0, n, step)
+    return out if out[-1] == n - 1 else np.append(out, n - 1)
+
+
+def _frame(centre: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Two unit tangent vectors at ``centre`` (a unit vector), east and north where they are defined."""
+    up = np.array([0.0, 0.0, 1.0]) if abs(centre[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    east = np.cross(up, centre)
+    east /= np.linalg.norm(east)
+    return east, np.cross(centre, east)
+
+
+def _chart(xyz: NDArray[np.float64], centre: NDArray, east: NDArray, north: NDArray) -> NDArray[np.float64]:
+    """Gnomonic coordinates about ``centre`` (radians near it), (..., 2)."""
+    depth = xyz @ centre
+    return np.stack([xyz @ east, xyz @ north], axis=-1) / depth[..., None]
+
+
+def _triangles(rows: int, cols: int) -> NDArray[np.int64]:
+    """Two triangles per cell of a ``rows x cols`` vertex grid, counter-clockwise in (col, -row), (t, 3)."""
+    i, j = np.meshgrid(np.arange(rows - 1), np.arange(cols - 1), indexing="ij")
+    a, b = (i * cols + j).ravel(), (i * cols + j + 1).ravel()
+    c, d = ((i + 1) * cols + j).ravel(), ((i + 1) * cols + j + 1).ravel()
+    # rows grow downwards (south): (a, c, b) and (b, c, d) turn counter-clockwise east-north
+    return np.concatenate([np.stack([a, c, b], 1), np.stack([b, c, d], 1)])
+
+
+def _interpolate(values: NDArray[np.float64], gy: NDArray, gx: NDArray, h: int, w: int) -> NDArray[np.float64]:
+    """Every pixel of a window from the grid's two triangles per cell (the triangles of :func:`_triangles`)."""
+    cell_y = np.clip(np.searchsorted(gy, np.arange(h), side="right") - 1, 0, len(gy) - 2)
+    cell_x = np.clip(np.searchsorted(gx, np.arange(w), side="right") - 1, 0, len(gx) - 2)
+    fy = ((np.arange(h) - gy[cell_y]) / (gy[cell_y + 1] - gy[cell_y]))[:, None, None]
+    fx = ((np.arange(w) - gx[cell_x]) / (gx[cell_x + 1] - gx[cell_x]))[None, :, None]
+    v00 = values[cell_y][:, cell_x]
+    v01 = values[cell_y][:, cell_x + 1]
+    v10 = values[cell_y + 1][:, cell_x]
+    v11 = values[cell_y + 1][:, cell_x + 1]
+    lower = v00 + fx * (v01 - v00) + fy * (v10 - v00)  # triangle (a, c, b): fx + fy <= 1
+    upper = v11 + (1 - fx) * (v10 - v11) + (1 - fy) * (v01 - v11)  # triangle (b, c, d)
+    return np.where(fx + fy <= 1, lower, upper)
+
+
+def _foldover_free(
+    ref: NDArray[np.float64], start: NDArray[np.float64], triangles: NDArray[np.int64], fixed: NDArray[np.bool_]
+) -> NDArray[np.float64] | None:
+    """Garanzha et al.'s untangling: positions with the fixed ones kept and every triangle turned positively, or None."""
+    from scipy.optimize import minimize
+
+    e1, e2 = ref[triangles[:, 1]] - ref[triangles[:, 0]], ref[triangles[:, 2]] - ref[triangles[:, 0]]
+    r = np.stack([e1, e2], axis=-1)  # (t, 2, 2), columns the reference edges
+    area = 0.5 * np.abs(np.linalg.det(r))
+    if np.any(area <= 0):
+        return None
+    # the reference scaled to the rim's own area, so the area term asks for no zoom the blend does not make
+    z_start = _edges(start, triangles)
+    scale = math.sqrt(max(float(np.abs(np.linalg.det(z_start)).sum()) / float(np.abs(np.linalg.det(r)).sum()), 1e-300))
+    inv = np.linalg.inv(r * scale)  # B: J = Z B
+    det_b = np.linalg.det(inv)
+    free = ~fixed
+    x = start.copy()
+    n, corners = len(x), np.concatenate([triangles[:, 0], triangles[:, 1], triangles[:, 2]])
+
+    def energy(flat: NDArray[np.float64], eps: float) -> tuple[float, NDArray[np.float64]]:
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a step into a fold is infinite: refused
+            return _energy(flat, eps)
+
+    def _energy(flat: NDArray[np.float64], eps: float) -> tuple[float, NDArray[np.float64]]:
+        x[free] = flat.reshape(-1, 2)
+        z = _edges(x, triangles)
+        j = z @ inv
+        a = np.sum(j * j, axis=(1, 2))
+        d = np.linalg.det(z) * det_b
+        root = np.sqrt(eps * eps + d * d)
+        chi = 0.5 * (d + root)
+        chi_d = 0.5 * (1.0 + d / root)
+        top = a + AREA_WEIGHT * (d * d + 1.0)
+        f = area * top / chi
+        df_da = area / chi
+        df_dd = area * (2.0 * AREA_WEIGHT * d / chi - top * chi_d / (chi * chi))
+        cof = np.stack([np.stack([z[:, 1, 1], -z[:, 1, 0]], -1), np.stack([-z[:, 0, 1], z[:, 0, 0]], -1)], -2)
+        dz = 2.0 * df_da[:, None, None] * (j @ np.transpose(inv, (0, 2, 1))) + (df_dd * det_b)[:, None, None] * cof
+        per_corner = np.concatenate([-dz[:, :, 0] - dz[:, :, 1], dz[:, :, 0], dz[:, :, 1]])  # (3t, 2)
+        grad = np.stack([np.bincount(corners, per_corner[:, c], minlength=n) for c in range(2)], axis=1)
+        total = float(f.sum())
+        return (total, grad[free].ravel().astype(np.float64)) if math.isfinite(total) else (math.inf, np.zeros(int(free.sum()) * 2))
+
+    def determinants() -> NDArray[np.float64]:
+        return np.linalg.det(_edges(x, triangles)) * det_b
+
+    if determinants().min() <= 0:  # the rim's harmonic fill often turns nothing over already
+        x[free] = _harmonic(x, triangles, free)
+    d0 = determinants()
+    eps = max(float(np.sqrt(1e-6 + 0.04 * min(float(d0.min()), 0.0) ** 2)), 1e-3) if d0.min() <= 0 else 1e-12
+    flat = x[free].ravel()
+    for _ in range(12):
+        flat = minimize(energy, flat, args=(eps,), jac=True, method="L-BFGS-B", options={"maxiter": 200}).x
+        x[free] = flat.reshape(-1, 2)
+        low = float(determinants().min())
+        if low > 0:
+            break
+        eps *= 0.1
+    else:
+        return None
+    # once turned right, the barrier keeps it so while the distortion is smoothed
+    flat = minimize(energy, flat, args=(1e-12,), jac=True, method="L-BFGS-B", options={"maxiter": 200}).x
+    x[free] = flat.reshape(-1, 2)
+    return x if float(determinants().min()) > 0 else None
+
+
+def _harmonic(x: NDArray[np.float64], triangles: NDArray[np.int64], free: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """The free vertices where the grid's graph Laplacian is zero, the others held: the rim's harmonic fill."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.linalg import spsolve
+
+    n = len(x)
+    i = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    adjacency = coo_matrix((np.ones(len(i)), (i[:, 0], i[:, 1])), shape=(n, n)).tocsr()
+    adjacency = ((adjacency + adjacency.T) > 0).astype(np.float64)
+    laplacian = (coo_matrix((np.asarray(adjacency.sum(axis=1)).ravel(), (np.arange(n), np.arange(n))), shape=(n, n)) - adjacency).tocsr()
+    inner = laplacian[free][:, free]
+    rhs = -laplacian[free][:, ~free] @ x[~free]
+    return np.asarray(spsolve(inner.tocsc(), rhs)).reshape(-1, 2)
+
+
+def _edges(x: NDArray[np.float64], triangles: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Each triangle's two edges from its first vertex as the columns of a 2 x 2 matrix, (t, 2, 2)."""
+    return np.stack([x[triangles[:, 1]] - x[triangles[:, 0]], x[triangles[:, 2]] - x[triangles[:, 0]]], axis=-1)
+
+
+def apply_patches(coordinates: NDArray[np.float32], patches: Sequence[Patch], src_width: int) -> NDArray[np.float32]:
+    """The source pixel coordinates with the untangled windows written in (a copy when there are any).
+
+    Parameters
+    ----------
+    coordinates : ndarray of float32, shape (H, W, 2)
+    patches : sequence of Patch
+    src_width : int
+
+    Returns
+    -------
+    ndarray of float32, shape (H, W, 2)
+    """
+    if not patches:
+        return coordinates
+    out = coordinates.copy()
+    for p in patches:
+        px = coords.lonlat_to_px(coords.xyz_to_lonlat(p.xyz), src_width) + PAD
+        out[p.rows, p.cols] = px.astype(np.float32)
+    return out
+
+
+def patched_inverse(fn: GridInverse, patches: Sequence[Patch]) -> GridInverse:
+    """A grid evaluator of the inverse map with the untangled windows in it (``fn`` itself when there are none)."""
+    if not patches:
+        return fn
+
+    def patched(lon: NDArray[np.float64], lat: NDArray[np.float64], rows: slice) -> tuple[NDArray, NDArray]:
+        src_lon, src_lat = (np.array(a, dtype=np.float64) for a in fn(lon, lat, rows))
+        for p in patches:
+            lo, hi = max(p.rows.start, rows.start), min(p.rows.stop, rows.stop)
+            if lo >= hi:
+                continue
+            lonlat = np.radians(coords.xyz_to_lonlat(p.xyz[lo - p.rows.start : hi - p.rows.start]))
+            src_lon[lo - rows.start : hi - rows.start, p.cols] = lonlat[..., 0]
+            src_lat[lo - rows.start : hi - rows.start, p.cols] = lonlat[..., 1]
+        return src_lon, src_lat
+
+    return patched
