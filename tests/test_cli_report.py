@@ -229,3 +229,33 @@ def test_the_demo_writes_the_result_as_it_is_and_the_handles_drawn_apart(tmp_pat
     stacked = read_image(tmp_path / "before_after.png")
     assert stacked.shape == (1032, 1024, 3) and np.array_equal(stacked[:512], before_drawn) and np.array_equal(stacked[520:], after_drawn)
     assert ow.load_handles(tmp_path / "handles.json") == handles
+
+
+def test_a_bad_dask_scheduler_or_output_is_said_before_any_work(files, capsys):
+    """No cluster needed: a scheduler file that is not there, an address without a port, several videos into one file."""
+    frames = [str(files / "pano.png"), str(files / "room.png")]
+    cases = {
+        f"--dask {files / 'none.json'}: no scheduler file there": [*frames, "-o", str(files / "out"), "--dask", str(files / "none.json")],
+        "--dask tcp://scheduler: give the scheduler's address with its port (tcp://host:8786)": [
+            *frames,
+            "-o",
+            str(files / "out"),
+            "--dask",
+            "tcp://scheduler",
+        ],
+        f"{files / 'o.mp4'}: with 2 inputs, -o names a folder for their outputs": [
+            str(files / "a.mp4"),
+            str(files / "b.mp4"),
+            "-o",
+            str(files / "o.mp4"),
+            "--dask",
+            "tcp://127.0.0.1:8786",
+        ],
+    }
+    listing = sorted(p.name for p in files.iterdir())
+    for message, argv in cases.items():
+        assert main(["warp", *argv[:-4], "-H", str(files / "lines.json"), *argv[-4:]]) == 2, message
+        err = capsys.readouterr().err
+        assert err.startswith(f"omniwidget warp: error: {message}") and err.count("\n") == 1, err
+        assert "Traceback" not in err and "outputs=" not in err, err
+    assert sorted(p.name for p in files.iterdir()) == listing  # nothing written, no folder made

@@ -483,6 +483,19 @@ def _warp_frames(args: argparse.Namespace) -> None:
         raise _FramesFailed(f"{len(report.failed)} of {len(args.input)} frames were not warped (see above)")
 
 
+def _check_scheduler(value: str) -> None:
+    """``--dask``'s value names a scheduler file that is there, or an address with a port (said before any work)."""
+    import re
+
+    from ..errors import ImageError
+
+    if value.endswith(".json"):
+        if not Path(value).is_file():
+            raise ImageError(f"--dask {value}: no scheduler file there (dask scheduler --scheduler-file {value} writes it)")
+    elif not re.search(r":\d+$", value):
+        raise ImageError(f"--dask {value}: give the scheduler's address with its port (tcp://host:8786) or its scheduler file (.json)")
+
+
 def _warp_on_dask(args: argparse.Namespace, videos: bool) -> None:
     """``--dask``: each file a task on the cluster, each video's time ranges tasks (:func:`omniwidget.app.batch.warp_files`); the workers read and write the files."""
     from ..document.handles import load_handles
@@ -497,6 +510,9 @@ def _warp_on_dask(args: argparse.Namespace, videos: bool) -> None:
     video_only = [f"--{name}" for name in ("codec", "crf", "preset", "spherical") if getattr(args, name) not in (None, False)]
     if video_only and not videos:
         raise ImageError(f"{video_only[0]} is for a video input (INPUT.mp4 ... -o OUTPUT.mp4)")
+    _check_scheduler(args.dask)
+    if videos and len(args.input) > 1 and (args.output.suffix.lower() in _IMAGE_SUFFIXES + _VIDEO_SUFFIXES or args.output.is_file()):
+        raise ImageError(f"{args.output}: with {len(args.input)} inputs, -o names a folder for their outputs")
     # images alone are checked here as without --dask; with a video, the batch checks each output's suffix
     outputs: Any = _frame_outputs(args) if not videos else ([args.output] if len(args.input) == 1 else args.output)
     if not videos and len(outputs) > 1:
