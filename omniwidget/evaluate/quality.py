@@ -38,6 +38,8 @@ from ..sphere.arcs import inside_polygon
 
 #: Samples per line piece in :func:`dense_line`'s first pass, which measures how long its image is.
 DENSE_FIRST = 65
+#: A line farther than this from straight, in output pixels, is reported as relaxed (:attr:`Summary.relaxed`).
+RELAXED_PX = 0.5
 #: The far field: the output sphere farther than this many degrees from every handle.
 FAR_FIELD = 30.0
 
@@ -47,10 +49,12 @@ __all__ = [
     "Distortion",
     "FarField",
     "FoldOver",
+    "RELAXED_PX",
     "PointFidelity",
     "Summary",
     "cage_fidelity",
     "cage_motion",
+    "chain_straightness",
     "conformal_distortion",
     "coverage",
     "dense_line",
@@ -251,7 +255,8 @@ def _distortion_figures(per_pixel: NDArray[np.float64], where: NDArray[np.bool_]
 def _bilinear(src: NDArray[np.float64], x: NDArray, y: NDArray) -> tuple[NDArray, NDArray, NDArray]:
     """Value and x/y derivatives of the bilinear interpolation of ``src`` (H, W, 3) at pixel ``(x, y)``.
 
-    Columns wrap, rows are clamped to ``[0, H - 1]``.
+    ``src`` may also be an inverse map ``[lon, lat]`` (H, W, 2): only the corners read are
+    turned into unit vectors. Columns wrap, rows are clamped to ``[0, H - 1]``.
     """
     height, width = src.shape[:2]
     y = np.clip(y, 0.0, height - 1.0)
@@ -259,6 +264,8 @@ def _bilinear(src: NDArray[np.float64], x: NDArray, y: NDArray) -> tuple[NDArray
     fx, fy = (x - x0)[:, None], (y - y0)[:, None]
     c0, c1, r0 = x0.astype(np.int64) % width, (x0.astype(np.int64) + 1) % width, y0.astype(np.int64)
     s00, s01, s10, s11 = src[r0, c0], src[r0, c1], src[r0 + 1, c0], src[r0 + 1, c1]
+    if src.shape[-1] == 2:
+        s00, s01, s10, s11 = (coords.lonlat_to_xyz(np.asarray(c, np.float64)) for c in (s00, s01, s10, s11))
     value = (1 - fy) * ((1 - fx) * s00 + fx * s01) + fy * ((1 - fx) * s10 + fx * s11)
     d_x = (1 - fy) * (s01 - s00) + fy * (s11 - s10)
     d_y = (1 - fx) * (s10 - s00) + fx * (s11 - s01)
@@ -317,7 +324,7 @@ def forward_points(
 def _forward_xyz(
     src: NDArray[np.float64], lonlat: NDArray[np.float64], start: NDArray[np.float64], iterations: int = 12, tolerance: float = 1e-3
 ) -> NDArray[np.float64]:
-    """:func:`forward_points` on an inverse map given as unit vectors (H, W, 3), from output ``[lon, lat]`` starts (n, 2)."""
+    """:func:`forward_points` on an inverse map as unit vectors (H, W, 3) or ``[lon, lat]`` (H, W, 2), from output ``[lon, lat]`` starts (n, 2)."""
     height, width = src.shape[:2]
     stride = max(1, width // 512)
     targets = coords.lonlat_to_xyz(lonlat).reshape(-1, 3)
@@ -383,9 +390,10 @@ def dense_line(
 
     Parameters
     ----------
-    xyz_map : ndarray of float64, shape (H, W, 3)
-        The inverse map as unit vectors (``coords.lonlat_to_xyz(inverse_map)``), computed
-        once by the caller for all the lines it measures.
+    xyz_map : ndarray, shape (H, W, 3) or (H, W, 2)
+        The inverse map as unit vectors (``coords.lonlat_to_xyz(inverse_map)``), or as it
+        is, ``[lon, lat]`` in degrees (then only the pixels the search reads are turned
+        into unit vectors: cheaper for a few lines).
     pieces : sequence of (start, end, guess)
         The line's pieces in order: input ``[lon, lat]`` ends (2,) in degrees, and a
         function taking input ``[lon, lat]`` (n, 2) to where the output is expected to
@@ -433,12 +441,11 @@ def dense_straightness(inverse_map: ArrayLike, start: ArrayLike, end: ArrayLike,
         NaN if the output does not show every sample.
     """
     m = check_inverse_map(inverse_map)
-    xyz = coords.lonlat_to_xyz(m)
     if guess is None:
         def guess(lonlat: NDArray) -> NDArray:
             return forward_points(m, lonlat)
 
-    out = dense_line(xyz, [(start, end, guess)])
+    out = dense_line(m, [(start, end, guess)])
     return straightness(out, m.shape[1], fit="best") if np.all(np.isfinite(out)) else math.nan
 
 
@@ -747,6 +754,8 @@ class Summary:
     far : FarField or None
         The same figures on the output farther than :data:`FAR_FIELD` from every handle
         (:func:`far_field`), where a person expects nothing to move.
+    line_handles : tuple of int
+        The handle each entry of ``lines`` belongs to (empty when not known).
     """
 
     method: str
@@ -761,6 +770,18 @@ class Summary:
     seconds: float
     width: int
     far: FarField | None = None
+    line_handles: tuple[int, ...] = ()
+
+    @property
+    def relaxed(self) -> tuple[tuple[int, float], ...]:
+        """The lines farther than :data:`RELAXED_PX` from straight: ``(handle index, px)`` each, worst first.
+
+        A rectified line gives way where the map had to be untangled around it
+        (:mod:`omniwidget.raster.untangle`) or where other handles pull on it; a line not
+        shown at all counts as NaN. Needs ``line_handles`` (as :func:`summary` fills it).
+        """
+        found = [(h, v) for h, v in zip(self.line_handles, self.lines, strict=False) if not v <= RELAXED_PX]
+        return tuple(sorted(found, key=lambda hv: -hv[1] if math.isfinite(hv[1]) else -math.inf))
 
     @property
     def straightness(self) -> float:
@@ -789,6 +810,8 @@ class Summary:
         ]
         if self.cage_motion is not None:
             parts.append(f"cages still to {self.cage_motion:.2g} px")
+        for h, v in self.relaxed:
+            parts.append(f"handles[{h}] (line) relaxed to {v:.2g} px" if math.isfinite(v) else f"handles[{h}] (line) not shown")
         if self.far is not None and self.far.share > 0:
             far = self.far.displacement
             parts.append(f"far from the handles moved {far:.2g}°" if far >= 0.005 else "far from the handles still")
@@ -814,14 +837,32 @@ class Summary:
         return out
 
 
-def _chains(result: Any, placed: NDArray[np.float64]) -> list[NDArray[np.float64]]:
-    """Each straight output segment found densely in the output through ``placed`` (:func:`dense_line`), its pieces in order."""
+def chain_straightness(result: Any, placed: NDArray[np.floating] | None = None) -> tuple[float, ...]:
+    """Each straight output segment's distance from straight, measured densely through the map that placed the pixels.
+
+    Parameters
+    ----------
+    result : Result
+        Of :func:`omniwidget.warp` or a baseline: with ``constraints`` (its ``lines`` and
+        ``chains``), ``controls``, and ``placed_map()`` or ``inverse_map()``.
+    placed : ndarray, shape (H, W, 2), optional
+        The map to measure through (default: ``result.placed_map()``).
+
+    Returns
+    -------
+    tuple of float
+        One per chain (a line cut into pieces is measured whole), in output pixels; NaN
+        for one the output does not show (:func:`dense_line`, each piece's search started
+        from its own Möbius map).
+    """
+    if placed is None:
+        placed = result.placed_map() if hasattr(result, "placed_map") else result.inverse_map(np.float64)
     lines, controls = result.constraints.lines, result.controls
-    xyz = coords.lonlat_to_xyz(placed)
-    return [
-        dense_line(xyz, [(lines[k][1][0], lines[k][1][-1], controls[lines[k][0]].moebius) for k in chain])
-        for chain in result.constraints.chains
-    ]
+    out = []
+    for chain in result.constraints.chains:
+        curve = dense_line(placed, [(lines[k][1][0], lines[k][1][-1], controls[lines[k][0]].moebius) for k in chain])
+        out.append(straightness(curve, placed.shape[1], fit="best") if np.all(np.isfinite(curve)) else math.nan)
+    return tuple(out)
 
 
 def summary(result: Any) -> Summary:
@@ -849,8 +890,7 @@ def summary(result: Any) -> Summary:
 
     m = result.inverse_map(np.float64)
     width = m.shape[1]
-    placed = result.placed_map() if hasattr(result, "placed_map") else m
-    lines = tuple(straightness(chain, width, fit="best") if np.all(np.isfinite(chain)) else math.nan for chain in _chains(result, placed))
+    lines = chain_straightness(result, result.placed_map() if hasattr(result, "placed_map") else m)
     distortion = conformal_distortion(m)
     far = far_field(m, coords.xyz_to_lonlat(result.constraints.points), distortion=distortion, folds=result.folds.mask)
     fixed = [h.vertices for h in result.handles.handles if isinstance(h, CageHandle) and h.finals == h.vertices]
@@ -867,6 +907,7 @@ def summary(result: Any) -> Summary:
         seconds=float(sum(result.timings.values())),
         width=width,
         far=far,
+        line_handles=tuple(int(result.controls[result.constraints.lines[chain[0]][0]].handle) for chain in result.constraints.chains),
     )
 
 

@@ -36,8 +36,6 @@ GRID_SIDE = 48
 #: A window reaches this many times the turned-over patch's size beyond it (at least :data:`MARGIN`), so that the
 #: untangled map has room to spread what it gathers.
 SPREAD = 1.0
-#: Tries per patch, each with twice the margin of the one before.
-TRIES = 4
 #: Weight of the area term against the shape term in the untangling energy (their ``λ``).
 AREA_WEIGHT = 0.5
 
@@ -81,9 +79,11 @@ def untangle(coordinates: NDArray[np.float32], mask: NDArray[np.bool_], src_widt
     Returns
     -------
     list of Patch
-        One per turned-over patch (patches whose windows meet are untangled together);
-        empty when nothing turns over. A patch the untangling could not clear within
-        :data:`TRIES` windows is left out, and the fold check after it still shows it.
+        One per turned-over patch (patches closer than :data:`MARGIN` are untangled
+        together); empty when nothing turns over. Each is tried in windows
+        :data:`SPREAD` times its size wider (at most a sixteenth of the width), then twice
+        and four times that, then :data:`MARGIN`; a patch no window clears is left out,
+        and the fold check after it still shows it.
     """
     from scipy import ndimage
 
@@ -105,19 +105,19 @@ def untangle(coordinates: NDArray[np.float32], mask: NDArray[np.bool_], src_widt
     for box in sorted(boxes, key=lambda b: -(b[0].stop - b[0].start) * (b[1].stop - b[1].start)):
         if taken[box].all():
             continue
-        margin = max(MARGIN, round(SPREAD * max(box[0].stop - box[0].start, box[1].stop - box[1].start)))
-        for _ in range(TRIES):
-            r0, r1 = max(box[0].start - margin, 0), min(box[0].stop + margin, height)
+        size = max(box[0].stop - box[0].start, box[1].stop - box[1].start)
+        spread = min(max(MARGIN, round(SPREAD * size)), width // 16)
+        for margin in dict.fromkeys([spread, 2 * spread, 4 * spread, MARGIN]):  # wider first; the narrowest last
+            r0, r1 = max(box[0].start - margin, 1), min(box[0].stop + margin, height - 1)  # the rim never on a pole row
             c0, c1 = box[1].start - margin, box[1].stop + margin
             if c1 - c0 >= width:
-                break
+                continue
             cols = (np.arange(c0, c1) + shift) % width
             patch = _untangle_window(lonlat, rolled_mask_window(mask, slice(r0, r1), cols), slice(r0, r1), cols, width)
             if patch is not None:
                 patches.append(patch)
                 taken[r0:r1, max(c0, 0) : min(c1, width)] = True
                 break
-            margin *= 2
     return patches
 
 
@@ -130,15 +130,10 @@ def _untangle_window(
     lonlat: NDArray[np.float64], folded: NDArray[np.bool_], rows: slice, cols: NDArray[np.int64], width: int
 ) -> Patch | None:
     """Untangle the map on one window; None when its rim is not clean or the result still folds."""
-    height = lonlat.shape[0]
     h, w = rows.stop - rows.start, len(cols)
     # the rim must be shown one-to-one (poles aside: there the window ends at the grid's edge)
     rim = np.zeros((h, w), bool)
     rim[[0, -1], :], rim[:, [0, -1]] = True, True
-    if rows.start == 0:
-        rim[0] = False
-    if rows.stop == height:
-        rim[-1] = False
     if (folded & _dilate(rim)).any() or h < 3 or w < 3:
         return None
     step = max(1, math.ceil(max(h, w) / GRID_SIDE))
