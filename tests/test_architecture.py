@@ -138,7 +138,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("method", ("omniwidget.method",)),
     ("raster", ("omniwidget.raster",)),
     ("detect", ("omniwidget.detect",)),  # below evaluate: the "suggested" scene family is the detector's own lines
-    ("evaluate", ("omniwidget.evaluate",)),
+    ("evaluate", ("omniwidget.evaluate", "omniwidget.evaluate.content_preserving")),
     ("io", ("omniwidget.io", "omniwidget.data")),
     ("app", ("omniwidget.app", "omniwidget.batch")),
     ("widget and pane", ("omniwidget.widget", "omniwidget.viz", "omniwidget.__main__")),

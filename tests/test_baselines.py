@@ -13,6 +13,7 @@ from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options
 from omniwidget.errors import ImageError
 from omniwidget.evaluate import scenes
 from omniwidget.evaluate.baselines import (
+    RIVALS,
     BaselineResult,
     Comparison,
     PerspectiveView,
@@ -22,7 +23,8 @@ from omniwidget.evaluate.baselines import (
     piecewise_constant,
     single_moebius,
 )
-from omniwidget.evaluate.quality import coverage, straightness, tear
+from omniwidget.evaluate.content_preserving import ContentPreservingResult, PlaneSummary
+from omniwidget.evaluate.quality import coverage, dense_straightness, straightness, tear
 from omniwidget.evaluate.scenes import mark_lines, synthetic_room
 from omniwidget.raster.pipeline import Result, warp
 from omniwidget.sphere import coords
@@ -41,9 +43,18 @@ PAPER = Options(anchor=None)
 
 
 def _figures(result) -> dict:
-    """Fold-over (% of the sphere), tear (px) and the worst line's straightness (px, best fit), at W."""
+    """Fold-over (% of the sphere), tear (px), the worst line's straightness (px, best fit) at its samples and densely, at W.
+
+    ``"dense"`` measures each line along its whole arc through the map that placed the
+    pixels (``placed_map()`` for BBW, the exact inverse map for a baseline), each piece's
+    search started from its own map, as ``quality.summary`` does.
+    """
     bends = [straightness(result.forward_points(samples, c), W, fit="best") for c, samples in result.constraints.lines]
-    return {"folds": 100 * result.folds.area, "tear": tear(result.inverse_map(np.float64)), "straight": max(bends)}
+    placed = result.inverse_map(np.float64) if isinstance(result, BaselineResult) else result.placed_map()
+    dense = [
+        dense_straightness(placed, samples[0], samples[-1], guess=result.controls[c].moebius) for c, samples in result.constraints.lines
+    ]
+    return {"folds": 100 * result.folds.area, "tear": tear(result.inverse_map(np.float64)), "straight": max(bends), "dense": max(dense)}
 
 
 def _describe(figures: dict) -> str:
@@ -135,11 +146,36 @@ def test_compare_measures_every_method_as_the_tests_do(room):
         assert s.method == name and s.width == W
         assert s.fold_over * 100 == pytest.approx(figures[ours]["folds"], abs=1e-12)
         assert s.tear == pytest.approx(figures[ours]["tear"], rel=1e-6)
-        assert s.straightness == pytest.approx(figures[ours]["straight"], rel=1e-6)
+        assert s.straightness == pytest.approx(figures[ours]["dense"], rel=1e-6)
         assert np.array_equal(table.results[name].image, results[ours].image)
     bundle = table._repr_mimebundle_()
     assert bundle["application/json"] == table.as_dict() and "<table>" in bundle["text/html"]
     assert bundle["text/plain"].count("\n") == 5 and "BBW (the paper)" in bundle["text/plain"]
+
+
+def test_compare_shows_content_preserving_beside_both_modes(room):
+    """[10] beside the default mode and the paper's (the paper's Fig. 13): its lines as straight, its border irregular."""
+    scene, doc, _, _ = room
+    lines_only = Handles(tuple(h for h in doc.handles if isinstance(h, LineHandle)), Options())
+    table = compare(scene.image, lines_only, RIVALS)
+    assert list(table.summaries) == ["default", "paper", "content_preserving"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        default = warp(scene.image, Handles(lines_only.handles, Options()))
+        paper = warp(scene.image, Handles(lines_only.handles, Options(rectify="all", anchor=None)))
+    assert table["default"].lines == pytest.approx(default.quality.lines, rel=1e-9)
+    assert table["paper"].lines == pytest.approx(paper.quality.lines, rel=1e-9)
+    theirs = table["content_preserving"]
+    result = table.results["content_preserving"]
+    assert isinstance(result, ContentPreservingResult) and isinstance(theirs, PlaneSummary) and theirs.width == W
+    print(f"\n[10]: lines {theirs.straightness:.3f} px, distortion {theirs.distortion_mean:.3f} (p99 {theirs.distortion_p99:.2f}), "
+          f"cropped {theirs.cropped_loss:.1%} lost; paper's mode lines {table['paper'].straightness:.3f} px")
+    assert len(theirs.lines) == len(lines_only.handles) and theirs.straightness < 0.5
+    assert theirs.fold_over == 0 and theirs.coverage == pytest.approx(1.0) and 0.05 < theirs.cropped_loss < 0.9
+    assert not result.mask.all() and np.isnan(theirs.displacement)
+    text = table.to_markdown()
+    assert "content-preserving [10]" in text and "sphere lost to the crop" in text and text.count("\n") == 4
+    assert table.as_dict()["content_preserving"]["cropped_loss"] == pytest.approx(theirs.cropped_loss)
 
 
 def test_compare_refuses_unknown_methods():

@@ -18,6 +18,10 @@ solve when the document asks for it); only the way the maps are combined differs
 - :func:`perspective`: a rectilinear (gnomonic) view (Fig. 2b): every straight line is
   straight, but it is a planar picture of less than a hemisphere, stretched towards its
   edges.
+- :func:`content_preserving`: the content-preserving projection of Carroll, Agrawala and
+  Agarwala 2009 ([10], Fig. 13), the paper's strongest rival, from
+  :mod:`omniwidget.evaluate.content_preserving`: a mesh over the whole sphere optimised
+  into a plane by sparse least squares, the marked lines straight, with an irregular border.
 
 :func:`compare` runs the paper's method and the baselines on the same handles and
 measures each (:func:`omniwidget.evaluate.quality.summary`): a :class:`Comparison`, shown in a
@@ -45,7 +49,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import check_panorama, whole_number
-from ..document.handles import CageHandle, Handles, PointHandle
+from ..document.handles import CageHandle, Handles, Options, PointHandle
 from ..method.constraints import SAMPLES, Constraints, Control, build_constraints
 from ..raster.blend import NEGLIGIBLE, PixelWeights, blended_inverse
 from ..raster.pipeline import BlendWarning, Result, warp
@@ -64,15 +68,19 @@ from ..raster.warping import (
     warp_moebius,
 )
 from ..sphere import coords
+from .content_preserving import ContentPreservingResult, content_preserving
 from .quality import FoldOver, Summary, fold_over, summary
 
 __all__ = [
     "METHODS",
+    "RIVALS",
     "SIGMA_PER_RADIUS",
     "BaselineResult",
     "Comparison",
+    "ContentPreservingResult",
     "PerspectiveView",
     "compare",
+    "content_preserving",
     "gaussian_2017",
     "perspective",
     "piecewise_constant",
@@ -703,13 +711,32 @@ def perspective(image: NDArray, center: ArrayLike, fov: float, width: int, heigh
 
 # --- the comparison ---------------------------------------------------------------------
 
-#: The methods :func:`compare` knows, by name: the paper's (``"bbw"``) and the baselines.
-METHODS: dict[str, Callable[..., Result]] = {
+def _with_options(options: Options) -> Callable[..., Result]:
+    """:func:`warp` with the document's handles under other options."""
+
+    def method(image: NDArray, handles: Handles, **kwargs: Any) -> Result:
+        if not isinstance(handles, Handles):
+            raise TypeError(f"handles must be a Handles document (see Handles.from_dict), got {type(handles).__name__}")
+        return warp(image, Handles(handles.handles, options), **kwargs)
+
+    return method
+
+
+#: The methods :func:`compare` knows, by name: the paper's method with the document's own
+#: options (``"bbw"``), the toolkit's default mode (``"default"``: ``Options()``), the
+#: paper's mode (``"paper"``: ``Options(rectify="all", anchor=None)``), the baselines, and
+#: [10] (``"content_preserving"``).
+METHODS: dict[str, Callable[..., Result | ContentPreservingResult]] = {
     "bbw": warp,
     "piecewise_constant": piecewise_constant,
     "gaussian_2017": gaussian_2017,
     "single_moebius": single_moebius,
+    "default": _with_options(Options()),
+    "paper": _with_options(Options(rectify="all", anchor=None)),
+    "content_preserving": content_preserving,
 }
+#: ``compare(image, handles, RIVALS)``: ours in the default and the paper's mode beside [10] (the paper's Fig. 13).
+RIVALS = ("default", "paper", "content_preserving")
 
 #: Columns of the comparison table: (heading, Summary attribute, format).
 _COLUMNS = (
@@ -719,6 +746,7 @@ _COLUMNS = (
     ("conformal distortion, mean", "distortion_mean", "{:.3f}"),
     ("conformal distortion, p99", "distortion_p99", "{:.3f}"),
     ("sphere shown (%)", "coverage", "{:.1%}"),
+    ("sphere lost to the crop (%)", "cropped_loss", "{:.1%}"),
     ("mean displacement (°)", "displacement", "{:.2f}"),
     ("fixed cage moved (px)", "cage_motion", "{:.2g}"),
     ("time (s)", "seconds", "{:.2f}"),
@@ -728,6 +756,9 @@ _LABELS = {
     "piecewise_constant": "piecewise-constant",
     "gaussian_2017": "Gaussian 2017",
     "single_moebius": "one Möbius map",
+    "default": "BBW, default mode",
+    "paper": "BBW, the paper's mode",
+    "content_preserving": "content-preserving [10]",
 }
 
 
@@ -737,19 +768,29 @@ class Comparison:
 
     Attributes
     ----------
-    results : dict of str to Result
+    results : dict of str to Result or ContentPreservingResult
         Each method's result, by name (``"bbw"``, ``"piecewise_constant"``, ...).
     summaries : dict of str to Summary
-        Each method's quality figures (:func:`omniwidget.evaluate.quality.summary`).
+        Each method's quality figures (:func:`omniwidget.evaluate.quality.summary`; for
+        ``"content_preserving"`` a :class:`~omniwidget.evaluate.content_preserving.PlaneSummary`).
 
     Notes
     -----
+    [10]'s output is a plane of its own aspect ratio, not an equirectangular panorama, so
+    its figures are measured on its own output (:class:`~omniwidget.evaluate.content_preserving.PlaneSummary`
+    says how): its lines' straightness converted to the pixels of an equirectangular
+    panorama as wide as its output, at each line's own scale; distortion against the
+    sphere's metric per mesh triangle; fold-over by the sign of each triangle's
+    Jacobian; the share of the sphere shown, and the share lost when the plane is cropped
+    to the largest rectangle inside its irregular border (only it has one: the
+    panoramas' column shows "–"); its displacement does not apply ("–").
+
     In a notebook it shows as an HTML table, one row per method; its
     ``application/json`` representation is :meth:`as_dict`, so a notebook's saved output
     keeps the figures as numbers.
     """
 
-    results: dict[str, Result]
+    results: dict[str, Result | ContentPreservingResult]
     summaries: dict[str, Summary]
 
     def __getitem__(self, method: str) -> Summary:
@@ -770,7 +811,7 @@ class Comparison:
         for name, s in self.summaries.items():
             cells = [_LABELS.get(name, name)]
             for _, attribute, fmt in _COLUMNS:
-                value = getattr(s, attribute)
+                value = getattr(s, attribute, None)
                 cells.append("–" if value is None or (isinstance(value, float) and math.isnan(value)) else fmt.format(value))
             rows.append(cells)
         return rows
@@ -825,7 +866,10 @@ def compare(
     handles : Handles
     methods : sequence of str
         Names from :data:`METHODS`: ``"bbw"`` (:func:`omniwidget.warp`, the paper's
-        method), ``"piecewise_constant"``, ``"gaussian_2017"``, ``"single_moebius"``.
+        method with the document's options), ``"piecewise_constant"``,
+        ``"gaussian_2017"``, ``"single_moebius"``; ``"default"`` and ``"paper"``
+        (:func:`omniwidget.warp` under ``Options()`` and ``Options(rectify="all",
+        anchor=None)``), ``"content_preserving"`` ([10]); :data:`RIVALS` is the last three.
     width : int, optional
         Output width (default the input's); the figures count pixels at this width.
     samples : int
@@ -848,9 +892,9 @@ def compare(
     unknown = [m for m in methods if m not in METHODS]
     if unknown or not methods:
         raise ValueError(f"methods must be a non-empty sequence of {', '.join(METHODS)}; unknown: {', '.join(map(repr, unknown))}")
-    results: dict[str, Result] = {}
+    results: dict[str, Result | ContentPreservingResult] = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", category=BlendWarning)
         for name in methods:
             results[name] = METHODS[name](image, handles, width=width, samples=samples)
-    return Comparison(results, {name: summary(r) for name, r in results.items()})
+    return Comparison(results, {name: r.quality if isinstance(r, ContentPreservingResult) else summary(r) for name, r in results.items()})
