@@ -9,6 +9,7 @@ stage for inspection and teaching.
 
 from __future__ import annotations
 
+import math
 import threading
 import warnings
 from collections.abc import Sequence
@@ -31,7 +32,7 @@ from . import _kernels
 from .blend import blended_inverse, mesh_pixel_weights
 from .fold import FoldOver, fold_of_coordinates
 from .sampled import coarse_step, sampled_coordinates
-from .untangle import Patch, apply_patches, patched_inverse, untangle
+from .untangle import Patch, apply_patches, line_mask, line_pixels, patched_inverse, untangle
 from .warping import (
     GridInverse,
     Order,
@@ -280,11 +281,33 @@ def _fold_warning(
     )
 
 
-def _untangled(coordinates: NDArray[np.float32], folds: FoldOver, src_width: int) -> tuple[NDArray[np.float32], FoldOver, list[Patch]]:
-    """The coordinates with every turned-over patch untangled (:mod:`.untangle`), their fold check, and the windows."""
+def _line_pixels(d: Deformation, width: int) -> list[tuple[int, NDArray[np.int64]]]:
+    """Each marked line piece's handle and output pixels (by its own map, which the blend is there)."""
+    out = []
+    for c, samples in d.constraints.lines:
+        arc = float(coords.angular_distance(samples[0], samples[-1]))
+        dense = coords.geodesic(samples[0], samples[-1], np.linspace(0.0, 1.0, max(2, math.ceil(4 * arc * width / 360))))
+        out.append((d.controls[c].handle, line_pixels(d.controls[c].moebius(dense), width)))
+    return out
+
+
+def _lines_given_way(handles: Handles, lines: list[tuple[int, NDArray[np.int64]]], patches: Sequence[Patch]) -> list[str]:
+    """A warning per line that runs through a window untangled without keeping it (:attr:`Patch.keeps_lines`)."""
+    given = sorted({h for p in patches if not p.keeps_lines for h, px in lines if p.covers(px).any()})
+    return [
+        f"handles[{h}] ({handles.handles[h].kind}) gives way where the blend folded on it: it is not straight there "
+        "(Result.quality.relaxed says how far)"
+        for h in given
+    ]
+
+
+def _untangled(
+    coordinates: NDArray[np.float32], folds: FoldOver, src_width: int, keep: NDArray[np.bool_]
+) -> tuple[NDArray[np.float32], FoldOver, list[Patch]]:
+    """The coordinates with every turned-over patch untangled (:mod:`.untangle`), the lines kept where it can, their fold check, and the windows."""
     patches: list[Patch] = []
     for _ in range(UNTANGLE_ROUNDS):  # a window that met another's is untangled again in the next round
-        found = untangle(coordinates, folds.mask, src_width)
+        found = untangle(coordinates, folds.mask, src_width, keep)
         if not found:
             break
         coordinates = apply_patches(coordinates, found, src_width)
@@ -360,7 +383,9 @@ def warp(
         patches: list[Patch] = []
         laps = Laps(timings)
         if folds.area > 0 and handles.options.anchor is not None:  # the default mode never folds
-            coordinates, folds, patches = _untangled(coordinates, folds, image.shape[1])
+            lines = _line_pixels(d, width)
+            coordinates, folds, patches = _untangled(coordinates, folds, image.shape[1], line_mask([px for _, px in lines], width))
+            problems += _lines_given_way(handles, lines, patches)
             laps("untangle")
         inverse = patched_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], d.vertices, d.faces, d.weights, width), patches)
         out = remap(pad_panorama(image), coordinates, order)

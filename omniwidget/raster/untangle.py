@@ -17,7 +17,7 @@ samples fall inside one gives way there (:attr:`Patch.moved` says how far the ma
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,7 +27,7 @@ from ..sphere import coords
 from .fold import turned_over
 from .warping import PAD, GridInverse, coordinates_lonlat
 
-__all__ = ["MARGIN", "Patch", "apply_patches", "patched_inverse", "untangle"]
+__all__ = ["MARGIN", "Patch", "apply_patches", "line_mask", "line_pixels", "patched_inverse", "untangle"]
 
 #: Pixels of clean map kept around a turned-over patch at the first try (then doubled).
 MARGIN = 6
@@ -36,6 +36,8 @@ GRID_SIDE = 48
 #: A window reaches this many times the turned-over patch's size beyond it (at least :data:`MARGIN`), so that the
 #: untangled map has room to spread what it gathers.
 SPREAD = 1.0
+#: Quasi-Newton steps per stage of the untangling.
+ITERATIONS = 200
 #: Weight of the area term against the shape term in the untangling energy (their ``λ``).
 AREA_WEIGHT = 0.5
 
@@ -55,15 +57,25 @@ class Patch:
     moved : float
         The largest angle between the untangled map and the blend inside the window,
         degrees: how far the handles whose maps meet there gave way.
+    keeps_lines : bool
+        Whether the marked lines through the window kept the blend's map (``keep``); when
+        not, they give way there too.
     """
 
     rows: slice
     cols: NDArray[np.int64]
     xyz: NDArray[np.float64]
     moved: float
+    keeps_lines: bool = True
+
+    def covers(self, px: NDArray[np.int64]) -> NDArray[np.bool_]:
+        """Which output pixels ``(x, y)`` (n, 2) lie in the window."""
+        return (px[:, 1] >= self.rows.start) & (px[:, 1] < self.rows.stop) & np.isin(px[:, 0], self.cols)
 
 
-def untangle(coordinates: NDArray[np.float32], mask: NDArray[np.bool_], src_width: int) -> list[Patch]:
+def untangle(
+    coordinates: NDArray[np.float32], mask: NDArray[np.bool_], src_width: int, keep: NDArray[np.bool_] | None = None
+) -> list[Patch]:
     """Windows that replace the map where it turns the image over, each one-to-one.
 
     Parameters
@@ -75,6 +87,10 @@ def untangle(coordinates: NDArray[np.float32], mask: NDArray[np.bool_], src_widt
         Where the map turns over (``FoldOver.mask``).
     src_width : int
         Width of the source.
+    keep : ndarray of bool, shape (H, W), optional
+        Pixels whose map should stay the blend's (the marked lines, :func:`line_mask`): the
+        grid cells they fall in keep it, and the untangling works around them; a window
+        that cannot be cleared so is untangled without them, and those lines give way.
 
     Returns
     -------
@@ -107,13 +123,17 @@ def untangle(coordinates: NDArray[np.float32], mask: NDArray[np.bool_], src_widt
             continue
         size = max(box[0].stop - box[0].start, box[1].stop - box[1].start)
         spread = min(max(MARGIN, round(SPREAD * size)), width // 16)
-        for margin in dict.fromkeys([spread, 2 * spread, 4 * spread, MARGIN]):  # wider first; the narrowest last
+        # every window keeping the lines first; only when none clears it do the lines give way
+        tries = [(margin, with_keep) for with_keep in (keep is not None, False) for margin in dict.fromkeys([spread, 2 * spread, 4 * spread, MARGIN])]
+        for margin, with_keep in dict.fromkeys(tries):
             r0, r1 = max(box[0].start - margin, 1), min(box[0].stop + margin, height - 1)  # the rim never on a pole row
             c0, c1 = box[1].start - margin, box[1].stop + margin
             if c1 - c0 >= width:
                 continue
             cols = (np.arange(c0, c1) + shift) % width
-            patch = _untangle_window(lonlat, rolled_mask_window(mask, slice(r0, r1), cols), slice(r0, r1), cols, width)
+            folded = rolled_mask_window(mask, slice(r0, r1), cols)
+            kept = rolled_mask_window(keep, slice(r0, r1), cols) if with_keep and keep is not None else None
+            patch = _untangle_window(lonlat, folded, slice(r0, r1), cols, width, kept)
             if patch is not None:
                 patches.append(patch)
                 taken[r0:r1, max(c0, 0) : min(c1, width)] = True
@@ -127,9 +147,14 @@ def rolled_mask_window(mask: NDArray[np.bool_], rows: slice, cols: NDArray[np.in
 
 
 def _untangle_window(
-    lonlat: NDArray[np.float64], folded: NDArray[np.bool_], rows: slice, cols: NDArray[np.int64], width: int
+    lonlat: NDArray[np.float64],
+    folded: NDArray[np.bool_],
+    rows: slice,
+    cols: NDArray[np.int64],
+    width: int,
+    kept: NDArray[np.bool_] | None = None,
 ) -> Patch | None:
-    """Untangle the map on one window; None when its rim is not clean or the result still folds."""
+    """Untangle the map on one window (keeping the cells of ``kept`` pixels); None when its rim is not clean or it still folds."""
     h, w = rows.stop - rows.start, len(cols)
     # the rim must be shown one-to-one (poles aside: there the window ends at the grid's edge)
     rim = np.zeros((h, w), bool)
@@ -154,6 +179,16 @@ def _untangle_window(
     start = _chart(source[np.ix_(gy, gx)], centre, s_east, s_north)
     fixed = np.zeros(start.shape[:2], bool)
     fixed[[0, -1], :], fixed[:, [0, -1]] = True, True
+    cell_y, cell_x = _cells(gy, h), _cells(gx, w)
+    kept_cells = np.zeros((len(gy) - 1, len(gx) - 1), bool)
+    if kept is not None:
+        rows_k, cols_k = np.nonzero(kept)
+        kept_cells[cell_y[rows_k], cell_x[cols_k]] = True
+        if kept_cells[cell_y[:, None], cell_x[None, :]][folded].any():  # the blend folds on a line itself: it must give way
+            return None
+        for dy in (0, 1):
+            for dx in (0, 1):
+                fixed[dy : dy + kept_cells.shape[0], dx : dx + kept_cells.shape[1]] |= kept_cells
     triangles = _triangles(*start.shape[:2])
     solved = _foldover_free(ref.reshape(-1, 2), start.reshape(-1, 2), triangles, fixed.ravel())
     if solved is None:
@@ -163,12 +198,14 @@ def _untangle_window(
     uv = _interpolate(solved, gy, gx, h, w)
     xyz = centre + uv[..., :1] * s_east + uv[..., 1:] * s_north
     xyz /= np.linalg.norm(xyz, axis=-1, keepdims=True)
-    # the rows and columns of the rim keep the blend exactly (the grid interpolates between rim vertices)
+    # the rows and columns of the rim keep the blend exactly (the grid interpolates between rim vertices), and so do kept cells
     xyz[[0, -1], :], xyz[:, [0, -1]] = source[[0, -1], :], source[:, [0, -1]]
+    in_kept = kept_cells[cell_y[:, None], cell_x[None, :]]
+    xyz[in_kept] = source[in_kept]
     if turned_over(coords.xyz_to_lonlat(xyz)).any():
         return None
     moved = float(np.degrees(np.arccos(np.clip(np.sum(xyz * source, axis=-1), -1.0, 1.0))).max())
-    return Patch(rows, cols.astype(np.int64), xyz, moved)
+    return Patch(rows, cols.astype(np.int64), xyz, moved, keeps_lines=kept is not None)
 
 
 def _dilate(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -206,10 +243,14 @@ def _triangles(rows: int, cols: int) -> NDArray[np.int64]:
     return np.concatenate([np.stack([a, c, b], 1), np.stack([b, c, d], 1)])
 
 
+def _cells(grid: NDArray[np.int64], n: int) -> NDArray[np.int64]:
+    """The grid cell (between grid lines ``grid[i]`` and ``grid[i + 1]``) of each of ``n`` pixels along one axis."""
+    return np.clip(np.searchsorted(grid, np.arange(n), side="right") - 1, 0, len(grid) - 2)
+
+
 def _interpolate(values: NDArray[np.float64], gy: NDArray, gx: NDArray, h: int, w: int) -> NDArray[np.float64]:
     """Every pixel of a window from the grid's two triangles per cell (the triangles of :func:`_triangles`)."""
-    cell_y = np.clip(np.searchsorted(gy, np.arange(h), side="right") - 1, 0, len(gy) - 2)
-    cell_x = np.clip(np.searchsorted(gx, np.arange(w), side="right") - 1, 0, len(gx) - 2)
+    cell_y, cell_x = _cells(gy, h), _cells(gx, w)
     fy = ((np.arange(h) - gy[cell_y]) / (gy[cell_y + 1] - gy[cell_y]))[:, None, None]
     fx = ((np.arange(w) - gx[cell_x]) / (gx[cell_x + 1] - gx[cell_x]))[None, :, None]
     v00 = values[cell_y][:, cell_x]
@@ -225,21 +266,22 @@ def _foldover_free(
     ref: NDArray[np.float64], start: NDArray[np.float64], triangles: NDArray[np.int64], fixed: NDArray[np.bool_]
 ) -> NDArray[np.float64] | None:
     """Garanzha et al.'s untangling: positions with the fixed ones kept and every triangle turned positively, or None."""
-    from scipy.optimize import minimize
-
-    e1, e2 = ref[triangles[:, 1]] - ref[triangles[:, 0]], ref[triangles[:, 2]] - ref[triangles[:, 0]]
-    r = np.stack([e1, e2], axis=-1)  # (t, 2, 2), columns the reference edges
-    area = 0.5 * np.abs(np.linalg.det(r))
+    i, j, k = triangles.T
+    r00, r10 = (ref[j] - ref[i]).T  # the reference edges as the columns of R (2 x 2 per triangle)
+    r01, r11 = (ref[k] - ref[i]).T
+    det_r = r00 * r11 - r01 * r10
+    area = 0.5 * np.abs(det_r)
     if np.any(area <= 0):
         return None
     # the reference scaled to the rim's own area, so the area term asks for no zoom the blend does not make
-    z_start = _edges(start, triangles)
-    scale = math.sqrt(max(float(np.abs(np.linalg.det(z_start)).sum()) / float(np.abs(np.linalg.det(r)).sum()), 1e-300))
-    inv = np.linalg.inv(r * scale)  # B: J = Z B
-    det_b = np.linalg.det(inv)
+    z00, z10, z01, z11 = _edge_parts(start, i, j, k)
+    scale2 = max(float(np.abs(z00 * z11 - z01 * z10).sum()) / float(np.abs(det_r).sum()), 1e-300)
+    det_b = 1.0 / (det_r * scale2)  # B = (scale R)^-1: J = Z B
+    s_inv = 1.0 / math.sqrt(scale2)
+    b00, b01, b10, b11 = r11 * det_b / s_inv, -r01 * det_b / s_inv, -r10 * det_b / s_inv, r00 * det_b / s_inv
     free = ~fixed
     x = start.copy()
-    n, corners = len(x), np.concatenate([triangles[:, 0], triangles[:, 1], triangles[:, 2]])
+    n, corners = len(x), np.concatenate([i, j, k])
 
     def energy(flat: NDArray[np.float64], eps: float) -> tuple[float, NDArray[np.float64]]:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a step into a fold is infinite: refused
@@ -247,26 +289,31 @@ def _foldover_free(
 
     def _energy(flat: NDArray[np.float64], eps: float) -> tuple[float, NDArray[np.float64]]:
         x[free] = flat.reshape(-1, 2)
-        z = _edges(x, triangles)
-        j = z @ inv
-        a = np.sum(j * j, axis=(1, 2))
-        d = np.linalg.det(z) * det_b
+        z00, z10, z01, z11 = _edge_parts(x, i, j, k)
+        j00, j01 = z00 * b00 + z01 * b10, z00 * b01 + z01 * b11
+        j10, j11 = z10 * b00 + z11 * b10, z10 * b01 + z11 * b11
+        a = j00 * j00 + j01 * j01 + j10 * j10 + j11 * j11
+        d = (z00 * z11 - z01 * z10) * det_b
         root = np.sqrt(eps * eps + d * d)
         chi = 0.5 * (d + root)
-        chi_d = 0.5 * (1.0 + d / root)
         top = a + AREA_WEIGHT * (d * d + 1.0)
-        f = area * top / chi
-        df_da = area / chi
-        df_dd = area * (2.0 * AREA_WEIGHT * d / chi - top * chi_d / (chi * chi))
-        cof = np.stack([np.stack([z[:, 1, 1], -z[:, 1, 0]], -1), np.stack([-z[:, 0, 1], z[:, 0, 0]], -1)], -2)
-        dz = 2.0 * df_da[:, None, None] * (j @ np.transpose(inv, (0, 2, 1))) + (df_dd * det_b)[:, None, None] * cof
-        per_corner = np.concatenate([-dz[:, :, 0] - dz[:, :, 1], dz[:, :, 0], dz[:, :, 1]])  # (3t, 2)
-        grad = np.stack([np.bincount(corners, per_corner[:, c], minlength=n) for c in range(2)], axis=1)
-        total = float(f.sum())
-        return (total, grad[free].ravel().astype(np.float64)) if math.isfinite(total) else (math.inf, np.zeros(int(free.sum()) * 2))
+        total = float(np.sum(area * top / chi))
+        if not math.isfinite(total):
+            return math.inf, np.zeros(2 * int(free.sum()))
+        g_a = 2.0 * area / chi
+        g_d = area * (2.0 * AREA_WEIGHT * d / chi - top * 0.5 * (1.0 + d / root) / (chi * chi)) * det_b
+        # dF/dZ = g_a J B^T + g_d cof(Z); the columns of Z are the edges to the second and third corner
+        d00 = g_a * (j00 * b00 + j01 * b01) + g_d * z11
+        d01 = g_a * (j00 * b10 + j01 * b11) - g_d * z10
+        d10 = g_a * (j10 * b00 + j11 * b01) - g_d * z01
+        d11 = g_a * (j10 * b10 + j11 * b11) + g_d * z00
+        gx = np.bincount(corners, np.concatenate([-d00 - d01, d00, d01]), minlength=n)
+        gy = np.bincount(corners, np.concatenate([-d10 - d11, d10, d11]), minlength=n)
+        return total, np.stack([gx, gy], axis=1)[free].ravel()
 
     def determinants() -> NDArray[np.float64]:
-        return np.linalg.det(_edges(x, triangles)) * det_b
+        z00, z10, z01, z11 = _edge_parts(x, i, j, k)
+        return (z00 * z11 - z01 * z10) * det_b
 
     if determinants().min() <= 0:  # the rim's harmonic fill often turns nothing over already
         x[free] = _harmonic(x, triangles, free)
@@ -274,7 +321,7 @@ def _foldover_free(
     eps = max(float(np.sqrt(1e-6 + 0.04 * min(float(d0.min()), 0.0) ** 2)), 1e-3) if d0.min() <= 0 else 1e-12
     flat = x[free].ravel()
     for _ in range(12):
-        flat = minimize(energy, flat, args=(eps,), jac=True, method="L-BFGS-B", options={"maxiter": 200}).x
+        flat = _lbfgs(lambda v, e=eps: energy(v, e), flat, ITERATIONS)
         x[free] = flat.reshape(-1, 2)
         low = float(determinants().min())
         if low > 0:
@@ -283,9 +330,58 @@ def _foldover_free(
     else:
         return None
     # once turned right, the barrier keeps it so while the distortion is smoothed
-    flat = minimize(energy, flat, args=(1e-12,), jac=True, method="L-BFGS-B", options={"maxiter": 200}).x
+    flat = _lbfgs(lambda v: energy(v, 1e-12), flat, ITERATIONS)
     x[free] = flat.reshape(-1, 2)
     return x if float(determinants().min()) > 0 else None
+
+
+def _lbfgs(fn: Callable[[NDArray[np.float64]], tuple[float, NDArray[np.float64]]], x: NDArray[np.float64], iterations: int) -> NDArray[np.float64]:
+    """Limited-memory BFGS (the two-loop recursion, 8 pairs) with a backtracking line search that refuses infinite energy.
+
+    Written here rather than taken from ``scipy.optimize.minimize(method="L-BFGS-B")``,
+    whose bounded Fortran step costs about 2 ms a call on these few thousand unknowns, more
+    than the energy itself.
+    """
+    f, g = fn(x)
+    pairs: list[tuple[NDArray[np.float64], NDArray[np.float64], float]] = []
+    for _ in range(iterations):
+        q = g.copy()
+        alphas = []
+        for s_, y_, rho in reversed(pairs):
+            a = rho * float(s_ @ q)
+            alphas.append(a)
+            q -= a * y_
+        if pairs:
+            s_, y_, _ = pairs[-1]
+            q *= float(s_ @ y_) / float(y_ @ y_)
+        else:
+            q /= max(float(np.linalg.norm(g)), 1e-300)
+        for (s_, y_, rho), a in zip(pairs, reversed(alphas), strict=True):
+            q += s_ * (a - rho * float(y_ @ q))
+        direction = -q
+        slope = float(g @ direction)
+        if slope >= 0:  # not a descent direction: start the memory again
+            pairs.clear()
+            direction, slope = -g, -float(g @ g)
+        step = 1.0
+        for _ in range(30):
+            x_new = x + step * direction
+            f_new, g_new = fn(x_new)
+            if f_new <= f + 1e-4 * step * slope:
+                break
+            step *= 0.5
+        else:
+            return x
+        s_, y_ = x_new - x, g_new - g
+        sy = float(s_ @ y_)
+        if sy > 1e-12:
+            pairs.append((s_, y_, 1.0 / sy))
+            del pairs[:-8]
+        converged = f - f_new <= 1e-9 * max(abs(f), 1.0)
+        x, f, g = x_new, f_new, g_new
+        if converged:
+            break
+    return x
 
 
 def _harmonic(x: NDArray[np.float64], triangles: NDArray[np.int64], free: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -303,9 +399,40 @@ def _harmonic(x: NDArray[np.float64], triangles: NDArray[np.int64], free: NDArra
     return np.asarray(spsolve(inner.tocsc(), rhs)).reshape(-1, 2)
 
 
-def _edges(x: NDArray[np.float64], triangles: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Each triangle's two edges from its first vertex as the columns of a 2 x 2 matrix, (t, 2, 2)."""
-    return np.stack([x[triangles[:, 1]] - x[triangles[:, 0]], x[triangles[:, 2]] - x[triangles[:, 0]]], axis=-1)
+def _edge_parts(x: NDArray[np.float64], i: NDArray, j: NDArray, k: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """The entries ``z00, z10, z01, z11`` of each triangle's edge matrix (columns ``x[j] - x[i]`` and ``x[k] - x[i]``)."""
+    e1, e2 = x[j] - x[i], x[k] - x[i]
+    return e1[:, 0], e1[:, 1], e2[:, 0], e2[:, 1]
+
+
+def line_pixels(curve: NDArray[np.float64], width: int) -> NDArray[np.int64]:
+    """The output pixels ``(x, y)`` (n, 2) nearest the samples of a curve ``[lon, lat]`` (n, 2) given densely."""
+    x, y = np.rint(coords.lonlat_to_px(curve, width)).astype(np.int64).T
+    return np.stack([x % width, np.clip(y, 0, width // 2 - 1)], axis=1)
+
+
+def line_mask(pixels: Sequence[NDArray[np.int64]], width: int, radius: int = 1) -> NDArray[np.bool_]:
+    """The output pixels within ``radius`` of lines' pixels (:func:`line_pixels`), for :func:`untangle`'s ``keep``.
+
+    Parameters
+    ----------
+    pixels : sequence of ndarray of int64, shape (n, 2)
+        Each line's output pixels ``(x, y)``, at least one per pixel along it.
+    width : int
+        Of the output; its height is ``width / 2``.
+    radius : int
+        Pixels around each.
+
+    Returns
+    -------
+    ndarray of bool, shape (width / 2, width)
+    """
+    mask = np.zeros((width // 2, width), bool)
+    for px in pixels:
+        for dy in range(-radius, radius + 1):
+            for dx in range(-radius, radius + 1):
+                mask[np.clip(px[:, 1] + dy, 0, width // 2 - 1), (px[:, 0] + dx) % width] = True
+    return mask
 
 
 def apply_patches(coordinates: NDArray[np.float32], patches: Sequence[Patch], src_width: int) -> NDArray[np.float32]:
