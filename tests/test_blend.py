@@ -190,8 +190,10 @@ def _check_point_into_fixed_cage(width: int, anchor: float | None) -> None:
         assert fold_over(result.placed_map()).area == 0 and fold_over(result.inverse_map(np.float64)).area == 0
         given = next(m for m in messages if m.startswith("the blend folded over near handles[0] (cage) and handles[1] (point); untangled"))
         assert "the warp is one-to-one" in given and " px (" in given
-    # the point's content is shown in the cage: the cage gives way (measured 50 px in the paper's mode, 7.5 in the default at 512)
-    assert cage_motion(result.inverse_map(np.float64), CAGE) > (10 if anchor is None else 2)
+    # the paper's blend shows the point's content in the cage (measured 50 px of motion at 512); the default untangles
+    # the fold around the cage's edges and the point's map gives way there instead (the cage moved 0.94 px at 512)
+    moved = cage_motion(result.inverse_map(np.float64), CAGE)
+    assert moved > 10 if anchor is None else moved < 3, moved
 
 
 def test_handles_that_do_not_move_give_the_image_back(rng):
