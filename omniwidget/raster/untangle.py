@@ -32,12 +32,14 @@ __all__ = ["MARGIN", "Patch", "apply_patches", "line_mask", "line_pixels", "patc
 #: Pixels of clean map kept around a turned-over patch at the first try (then doubled).
 MARGIN = 6
 #: The most vertices along a side of a window's grid; larger windows take a coarser grid.
-GRID_SIDE = 48
+GRID_SIDE = 32
 #: A window reaches this many times the turned-over patch's size beyond it (at least :data:`MARGIN`), so that the
 #: untangled map has room to spread what it gathers.
 SPREAD = 1.0
+#: The regularisation ``ε`` at which the energy is a barrier: no step may turn a triangle over.
+BARRIER = 1e-12
 #: Quasi-Newton steps per stage of the untangling.
-ITERATIONS = 200
+ITERATIONS = 60
 #: Weight of the area term against the shape term in the untangling energy (their ``λ``).
 AREA_WEIGHT = 0.5
 
@@ -110,16 +112,16 @@ def untangle(
     clear = np.flatnonzero(~mask.any(axis=0))
     shift = int(clear[0]) if len(clear) else 0
     rolled = np.roll(mask, -shift, axis=1)
-    # patches closer than the margin are untangled in one window
-    near = ndimage.binary_dilation(rolled, structure=np.ones((3, 3), bool), iterations=MARGIN)
-    labels, _ = ndimage.label(near, structure=np.ones((3, 3), bool))
-    boxes = [b for b in ndimage.find_objects(labels) if b is not None]
-    lonlat = coordinates_lonlat(coordinates, src_width)
+    labels, _ = ndimage.label(rolled, structure=np.ones((3, 3), bool))
+    boxes = [
+        (slice(max(r.start - MARGIN, 0), min(r.stop + MARGIN, height)), slice(c.start - MARGIN, c.stop + MARGIN))
+        for r, c in _merged([b for b in ndimage.find_objects(labels) if b is not None], MARGIN)
+    ]  # each patch with MARGIN around it; the windows grow from there
     patches: list[Patch] = []
-    # (the boxes were grown by MARGIN to merge neighbours; each try grows them by its margin more)
     taken = np.zeros_like(rolled)
     for box in sorted(boxes, key=lambda b: -(b[0].stop - b[0].start) * (b[1].stop - b[1].start)):
-        if taken[box].all():
+        region = taken[box[0], max(box[1].start, 0) : min(box[1].stop, width)]
+        if region.size and region.all():  # inside a window already untangled
             continue
         size = max(box[0].stop - box[0].start, box[1].stop - box[1].start)
         spread = min(max(MARGIN, round(SPREAD * size)), width // 16)
@@ -133,12 +135,32 @@ def untangle(
             cols = (np.arange(c0, c1) + shift) % width
             folded = rolled_mask_window(mask, slice(r0, r1), cols)
             kept = rolled_mask_window(keep, slice(r0, r1), cols) if with_keep and keep is not None else None
-            patch = _untangle_window(lonlat, folded, slice(r0, r1), cols, width, kept)
+            window = coordinates_lonlat(coordinates[r0:r1][:, cols], src_width)
+            patch = _untangle_window(window, folded, slice(r0, r1), cols, width, kept)
             if patch is not None:
                 patches.append(patch)
                 taken[r0:r1, max(c0, 0) : min(c1, width)] = True
                 break
     return patches
+
+
+def _merged(boxes: list[tuple[slice, slice]], gap: int) -> list[tuple[slice, slice]]:
+    """Boxes (row and column slices) with every two closer than ``gap`` pixels joined into their bounding box."""
+    out = list(boxes)
+    joined = True
+    while joined:
+        joined = False
+        for a in range(len(out)):
+            for b in range(a + 1, len(out)):
+                (ra, ca), (rb, cb) = out[a], out[b]
+                if ra.start - gap < rb.stop and rb.start - gap < ra.stop and ca.start - gap < cb.stop and cb.start - gap < ca.stop:
+                    out[a] = (slice(min(ra.start, rb.start), max(ra.stop, rb.stop)), slice(min(ca.start, cb.start), max(ca.stop, cb.stop)))
+                    del out[b]
+                    joined = True
+                    break
+            if joined:
+                break
+    return out
 
 
 def rolled_mask_window(mask: NDArray[np.bool_], rows: slice, cols: NDArray[np.int64]) -> NDArray[np.bool_]:
@@ -147,7 +169,7 @@ def rolled_mask_window(mask: NDArray[np.bool_], rows: slice, cols: NDArray[np.in
 
 
 def _untangle_window(
-    lonlat: NDArray[np.float64],
+    window: NDArray[np.float64],
     folded: NDArray[np.bool_],
     rows: slice,
     cols: NDArray[np.int64],
@@ -164,7 +186,6 @@ def _untangle_window(
     step = max(1, math.ceil(max(h, w) / GRID_SIDE))
     gy = _grid_positions(h, step)
     gx = _grid_positions(w, step)
-    window = lonlat[rows][:, cols]
     source = coords.lonlat_to_xyz(window)  # (h, w, 3)
     centre = source.reshape(-1, 3).sum(axis=0)
     centre /= np.linalg.norm(centre)
@@ -318,7 +339,7 @@ def _foldover_free(
     if determinants().min() <= 0:  # the rim's harmonic fill often turns nothing over already
         x[free] = _harmonic(x, triangles, free)
     d0 = determinants()
-    eps = max(float(np.sqrt(1e-6 + 0.04 * min(float(d0.min()), 0.0) ** 2)), 1e-3) if d0.min() <= 0 else 1e-12
+    eps = max(float(np.sqrt(1e-6 + 0.04 * min(float(d0.min()), 0.0) ** 2)), 1e-3) if d0.min() <= 0 else BARRIER
     flat = x[free].ravel()
     for _ in range(12):
         flat = _lbfgs(lambda v, e=eps: energy(v, e), flat, ITERATIONS)
@@ -329,9 +350,9 @@ def _foldover_free(
         eps *= 0.1
     else:
         return None
-    # once turned right, the barrier keeps it so while the distortion is smoothed
-    flat = _lbfgs(lambda v: energy(v, 1e-12), flat, ITERATIONS)
-    x[free] = flat.reshape(-1, 2)
+    if eps > BARRIER:  # once turned right, the barrier keeps it so while the distortion is smoothed
+        flat = _lbfgs(lambda v: energy(v, BARRIER), flat, ITERATIONS)
+        x[free] = flat.reshape(-1, 2)
     return x if float(determinants().min()) > 0 else None
 
 
@@ -377,7 +398,7 @@ def _lbfgs(fn: Callable[[NDArray[np.float64]], tuple[float, NDArray[np.float64]]
         if sy > 1e-12:
             pairs.append((s_, y_, 1.0 / sy))
             del pairs[:-8]
-        converged = f - f_new <= 1e-9 * max(abs(f), 1.0)
+        converged = f - f_new <= 1e-7 * max(abs(f), 1.0)
         x, f, g = x_new, f_new, g_new
         if converged:
             break
