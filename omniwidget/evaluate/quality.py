@@ -252,7 +252,7 @@ def _distortion_figures(per_pixel: NDArray[np.float64], where: NDArray[np.bool_]
     return float(np.sum(values * area) / np.sum(area)), _weighted_quantile(values, area, 0.99)
 
 
-def _bilinear(src: NDArray[np.float64], x: NDArray, y: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+def _bilinear(src: NDArray[np.floating], x: NDArray, y: NDArray) -> tuple[NDArray, NDArray, NDArray]:
     """Value and x/y derivatives of the bilinear interpolation of ``src`` (H, W, 3) at pixel ``(x, y)``.
 
     ``src`` may also be an inverse map ``[lon, lat]`` (H, W, 2): only the corners read are
@@ -322,7 +322,7 @@ def forward_points(
 
 
 def _forward_xyz(
-    src: NDArray[np.float64], lonlat: NDArray[np.float64], start: NDArray[np.float64], iterations: int = 12, tolerance: float = 1e-3
+    src: NDArray[np.floating], lonlat: NDArray[np.float64], start: NDArray[np.float64], iterations: int = 12, tolerance: float = 1e-3
 ) -> NDArray[np.float64]:
     """:func:`forward_points` on an inverse map as unit vectors (H, W, 3) or ``[lon, lat]`` (H, W, 2), from output ``[lon, lat]`` starts (n, 2)."""
     height, width = src.shape[:2]
@@ -384,7 +384,7 @@ def line_straightness(inverse_map: ArrayLike, samples: ArrayLike, width: int | N
 
 
 def dense_line(
-    xyz_map: NDArray[np.float64], pieces: Sequence[tuple[ArrayLike, ArrayLike, Callable[[NDArray[np.float64]], NDArray[np.float64]]]]
+    xyz_map: NDArray[np.floating], pieces: Sequence[tuple[ArrayLike, ArrayLike, Callable[[NDArray[np.float64]], NDArray[np.float64]]]]
 ) -> NDArray[np.float64]:
     """A line's output image found densely: at least one sample per output pixel of its arc, through a map.
 

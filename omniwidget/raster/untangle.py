@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -330,7 +331,7 @@ def _foldover_free(
         d11 = g_a * (j10 * b10 + j11 * b11) + g_d * z00
         gx = np.bincount(corners, np.concatenate([-d00 - d01, d00, d01]), minlength=n)
         gy = np.bincount(corners, np.concatenate([-d10 - d11, d10, d11]), minlength=n)
-        return total, np.stack([gx, gy], axis=1)[free].ravel()
+        return total, np.stack([gx, gy], axis=1)[free].ravel().astype(np.float64)
 
     def determinants() -> NDArray[np.float64]:
         z00, z10, z01, z11 = _edge_parts(x, i, j, k)
@@ -342,7 +343,7 @@ def _foldover_free(
     eps = max(float(np.sqrt(1e-6 + 0.04 * min(float(d0.min()), 0.0) ** 2)), 1e-3) if d0.min() <= 0 else BARRIER
     flat = x[free].ravel()
     for _ in range(12):
-        flat = _lbfgs(lambda v, e=eps: energy(v, e), flat, ITERATIONS)
+        flat = _lbfgs(partial(energy, eps=eps), flat, ITERATIONS)
         x[free] = flat.reshape(-1, 2)
         low = float(determinants().min())
         if low > 0:
@@ -351,7 +352,7 @@ def _foldover_free(
     else:
         return None
     if eps > BARRIER:  # once turned right, the barrier keeps it so while the distortion is smoothed
-        flat = _lbfgs(lambda v: energy(v, BARRIER), flat, ITERATIONS)
+        flat = _lbfgs(partial(energy, eps=BARRIER), flat, ITERATIONS)
         x[free] = flat.reshape(-1, 2)
     return x if float(determinants().min()) > 0 else None
 
