@@ -23,7 +23,7 @@ from .._checks import whole_number
 from .._timing import Laps
 from ..document.handles import Handles
 from ..method.background import BACKGROUND
-from ..method.constraints import SAMPLES, Control
+from ..method.constraints import POINT_HOLD, SAMPLES, Control
 from ..method.deformation import Deformation, deform
 from ..method.locate import interpolate, locate_grid
 from ..sphere import coords
@@ -301,12 +301,34 @@ def _lines_given_way(handles: Handles, lines: list[tuple[int, NDArray[np.int64]]
     ]
 
 
+def _held_pixels(d: Deformation, width: int) -> NDArray[np.bool_]:
+    """The output pixels inside every cage and on every point's disk, which the untangling keeps as the blend has them."""
+    from ..sphere.arcs import inside_polygon
+
+    mask = np.zeros((width // 2, width), bool)
+    lon, lat = coords.grid_lonlat(width)
+    for _, polygon in d.constraints.cages:
+        edges = np.concatenate([coords.geodesic(a, b, np.linspace(0, 1, 33)) for a, b in zip(polygon, np.roll(polygon, -1, axis=0), strict=True)])
+        rows = np.flatnonzero((lat >= edges[:, 1].min() - 1) & (lat <= edges[:, 1].max() + 1))
+        grid = np.stack(np.meshgrid(lon, lat[rows]), axis=-1)
+        mask[rows] |= inside_polygon(grid, polygon)
+    for _, centre in d.constraints.disks:
+        c_lon, c_lat = coords.xyz_to_lonlat(centre)
+        rows = np.flatnonzero(np.abs(lat - c_lat) <= POINT_HOLD + 1)
+        grid = np.stack(np.meshgrid(lon, lat[rows]), axis=-1)
+        mask[rows] |= coords.angular_distance(grid, (c_lon, c_lat)) <= POINT_HOLD
+    return mask
+
+
 def _untangled(
     coordinates: NDArray[np.float32], folds: FoldOver, src_width: int, keep: NDArray[np.bool_]
 ) -> tuple[NDArray[np.float32], FoldOver, list[Patch]]:
-    """The coordinates with every turned-over patch untangled (:mod:`.untangle`), the lines kept where it can, their fold check, and the windows."""
+    """Every turned-over patch untangled (:mod:`.untangle`), what is held kept where it can.
+
+    Returns the coordinates, their fold check and the windows, in the order they were written.
+    """
     patches: list[Patch] = []
-    for _ in range(UNTANGLE_ROUNDS):  # a window that met another's is untangled again in the next round
+    for _ in range(UNTANGLE_ROUNDS):  # a window that met another's is untangled again
         found = untangle(coordinates, folds.mask, src_width, keep)
         if not found:
             break
@@ -384,7 +406,8 @@ def warp(
         laps = Laps(timings)
         if folds.area > 0 and handles.options.anchor is not None:  # the default mode never folds
             lines = _line_pixels(d, width)
-            coordinates, folds, patches = _untangled(coordinates, folds, image.shape[1], line_mask([px for _, px in lines], width))
+            keep = line_mask([px for _, px in lines], width) | _held_pixels(d, width)
+            coordinates, folds, patches = _untangled(coordinates, folds, image.shape[1], keep)
             problems += _lines_given_way(handles, lines, patches)
             laps("untangle")
         inverse = patched_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], d.vertices, d.faces, d.weights, width), patches)

@@ -77,7 +77,10 @@ class Patch:
 
 
 def untangle(
-    coordinates: NDArray[np.float32], mask: NDArray[np.bool_], src_width: int, keep: NDArray[np.bool_] | None = None
+    coordinates: NDArray[np.float32],
+    mask: NDArray[np.bool_],
+    src_width: int,
+    keep: NDArray[np.bool_] | None = None,
 ) -> list[Patch]:
     """Windows that replace the map where it turns the image over, each one-to-one.
 
