@@ -62,7 +62,7 @@ def test_warp_says_what_it_wrote_its_size_the_time_and_how_straight_the_lines_ar
     )
     assert found, line
     assert read_image(out).shape == (128, 256, 3) and np.load(inverse).shape == (128, 256, 2)  # the size it says is the size written
-    assert float(found.group(1)) < 0.1  # rectified lines: measured 0.01 px (the floor it prints) at 256 wide
+    assert float(found.group(1)) < 0.25  # rectified lines, densely through the map that placed the pixels: 0.16 px at 256 wide
 
 
 def test_the_straightness_it_prints_is_what_the_quality_figures_measure(files, capsys):
@@ -72,7 +72,7 @@ def test_the_straightness_it_prints_is_what_the_quality_figures_measure(files, c
     printed = float(re.search(rf"lines within {NUMBER} px", line).group(1))
     measured = ow.warp(ow.sample_image()[::2, ::2], ow.Handles.from_dict(BENT), warn=False).quality.straightness
     assert measured > 2.0  # the precondition: the arc really is bent (4.2 px at 512 wide)
-    assert printed == pytest.approx(measured, abs=0.05), (printed, measured)  # .2g of the same figure, measured another way
+    assert printed == pytest.approx(measured, rel=0.03), (printed, measured)  # the same figure, printed to .2g
 
 
 def test_warnings_come_before_the_closing_line_which_names_the_handles(files, capsys):

@@ -180,16 +180,6 @@ def _warp_quietly(*args: Any, **kwargs: Any) -> Result:
 
 _IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".npy")
 
-#: Samples per output pixel along each line when the closing line measures how straight it came out.
-LINE_SAMPLES_PER_PIXEL = 2
-#: Samples per line piece at least, and in the first pass that measures how long its image is.
-LINE_SAMPLES_MIN = 65
-#: Output pixels a sample may be from where the search put it before the line counts as not shown.
-LINE_FOUND_PX = 0.01
-#: Fixed-point steps of the search for the lines' samples in the output (``Deformation.forward_points`` takes 8).
-LINE_ITERATIONS = 12
-
-
 def _say(args: argparse.Namespace, text: str) -> None:
     """One line of the command's own on stderr (the closing line, a note), unless ``--quiet``."""
     if not args.quiet:
@@ -205,95 +195,21 @@ def _size(image: Any) -> str:
     return f"{image.shape[1]} x {image.shape[0]}"
 
 
-def _line_straightness(result: Result) -> tuple[float, ...]:
-    """How straight each marked straight segment came out, in output pixels, measured along its whole length.
-
-    Each piece of a line is sampled at least :data:`LINE_SAMPLES_PER_PIXEL` times per output
-    pixel of its image, each sample found in the output through the blend itself (as
-    ``result.forward_points`` finds points, from the piece's own map, all pieces at once),
-    and the samples of each segment (``constraints.chains``: a line cut for its length is
-    one segment) are fitted by one straight line
-    (:func:`omniwidget.evaluate.quality.straightness`, ``fit="best"``). Near the handles the
-    output's pixels are placed by that blend exactly (:mod:`omniwidget.raster.sampled`), so
-    this is how straight the image shows them. It costs a fraction of ``result.quality``
-    (every figure, through the per-pixel map).
-
-    Parameters
-    ----------
-    result : Result
-
-    Returns
-    -------
-    tuple of float
-        One per segment; NaN for one whose samples the search does not find in the output
-        (where the map folds over the line, say).
-    """
-    import math
-
-    import numpy as np
-
-    from ..evaluate.quality import straightness
-    from ..sphere import coords
-
-    width = result.image.shape[1]
-    lines, controls = result.constraints.lines, result.controls
-    pieces, owner = [], []
-    for k, (control, samples) in enumerate(lines):
-        start, end = samples[0], samples[-1]
-        first = controls[control].moebius(coords.geodesic(start, end, np.linspace(0.0, 1.0, LINE_SAMPLES_MIN)))
-        length = float(np.sum(coords.angular_distance(first[:-1], first[1:]))) * width / 360.0
-        n = max(LINE_SAMPLES_MIN, LINE_SAMPLES_PER_PIXEL * math.ceil(length) + 1)
-        pieces.append(coords.geodesic(start, end, np.linspace(0.0, 1.0, n)))
-        owner.append(np.full(n, k))
-    if not pieces:
-        return ()
-    p = coords.lonlat_to_xyz(np.concatenate(pieces))
-    piece = np.concatenate(owner)
-    control_of = np.array([c for c, _ in lines])[piece]
-    maps = {c: controls[c].moebius for c in np.unique(control_of).tolist()}
-
-    def each(xyz: Any, which: Any, inverse: bool) -> Any:
-        out = np.empty_like(xyz)
-        for c, m in maps.items():
-            where = which == c
-            if where.any():
-                out[where] = (m.inverse if inverse else m).apply_xyz(xyz[where])
-        return out
-
-    # the fixed-point steps of Deformation.forward_points, every piece at once, each sample until it is found
-    q = each(p, control_of, inverse=False)
-    miss = np.full(len(p), np.inf)
-    todo = np.arange(len(p))
-    for step_number in range(LINE_ITERATIONS + 1):
-        shown = coords.lonlat_to_xyz(result.inverse_points(coords.xyz_to_lonlat(q[todo])))
-        miss[todo] = np.degrees(np.arccos(np.clip(np.sum(shown * p[todo], axis=-1), -1.0, 1.0))) * width / 360.0
-        keep = miss[todo] > LINE_FOUND_PX
-        todo, shown = todo[keep], shown[keep]
-        if not len(todo) or step_number == LINE_ITERATIONS:
-            break
-        step = each(q[todo], control_of[todo], inverse=True) + (p[todo] - shown)
-        q[todo] = each(step / np.linalg.norm(step, axis=-1, keepdims=True), control_of[todo], inverse=False)
-    found = coords.xyz_to_lonlat(q)
-    found[miss > LINE_FOUND_PX] = np.nan
-    out = []
-    for chain in result.constraints.chains:
-        points = np.concatenate([found[piece == k] for k in chain])
-        out.append(straightness(points, width, fit="best") if np.all(np.isfinite(points)) else math.nan)
-    return tuple(out)
-
-
 def _headline(result: Result) -> str:
     """How a warp came out, in a few words: its lines' straightness, its fold-over, its warnings.
 
-    Only what is cheap or already computed: the lines as :func:`_line_straightness` measures
-    them, the fold-over the warp found (``result.folds``) and the conflicts it reported
+    Only what is cheap or already computed: the lines measured as ``Result.quality`` measures
+    them (:func:`omniwidget.evaluate.quality.chain_straightness`: densely, through the map that
+    placed the pixels), the fold-over the warp found (``result.folds``) and the conflicts it reported
     (``result.warnings``, printed above the closing line), which name the handles that gave way.
     """
     import math
     import re
 
+    from ..evaluate.quality import chain_straightness
+
     parts = []
-    lines = _line_straightness(result)
+    lines = chain_straightness(result)
     if lines:
         worst = max(lines)
         shown = not any(math.isnan(v) for v in lines)
