@@ -289,12 +289,17 @@ def test_folds_and_conflicts_are_reported_with_the_handles_named():
     # Fig. 15: a point moved into a fixed cage
     cage = {"kind": "cage", "vertices": [[-20, -15], [20, -15], [20, 15], [-20, 15]]}
     point = {"kind": "point", "position": [40.0, 0.0], "target": [0.0, 0.0]}
-    ed = Editor(ow.sample_image(), doc(cage, point))
+    ed = Editor(ow.sample_image(), doc(cage, point, anchor=None))  # the paper's mode folds, and shows where
     status = ed.wait()
     assert status["fold_area"] > 1e-4
     assert status["conflicts"] == [0, 1]
     overlay = decoded(ed.folds)
     assert overlay.shape == (512, 1024, 4) and (overlay[:, :, 3] > 0).mean() == pytest.approx(ed.preview_result.folds.mask.mean())
+    # the default mode untangles it: nothing turned over, and the two handles are still named as the conflict
+    ed = Editor(ow.sample_image(), doc(cage, point))
+    status = ed.wait()
+    assert status["fold_area"] == 0 and status["conflicts"] == [0, 1]
+    assert any("untangled" in w and "handles[0] (cage) and handles[1] (point)" in w for w in status["warnings"])
 
 
 def test_a_line_over_a_pole_kept_as_it_is_is_listed_in_the_status_and_not_as_a_conflict(editor):
