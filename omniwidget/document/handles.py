@@ -12,7 +12,8 @@ Python API and the widget::
 
 Positions are ``[lon, lat]`` in degrees (see :mod:`omniwidget.sphere.coords`). Optional
 fields: a point's ``target`` (default: its ``position``), ``rotation`` (degrees,
-counter-clockwise as seen in the image) and ``scale`` (> 1 zooms in); a line's ``rectify``
+counter-clockwise as seen in the image), ``scale`` (> 1 zooms in) and ``reach`` (degrees:
+how far its turn and zoom reach with the still background); a line's ``rectify``
 (default true, eq. 4) or explicit ``targets`` (start, middle, end); a cage's ``targets``
 (default: it stays); an ``id`` string on any handle; ``options.rectify``, ``"all"``
 (Sec. 3.4, the default) or ``"each"`` (eq. 4 line by line). Anything else is refused by a
@@ -44,6 +45,7 @@ __all__ = [
     "LineHandle",
     "Options",
     "PointHandle",
+    "REACH_RANGE",
     "load_handles",
     "save_handles",
 ]
@@ -62,6 +64,8 @@ ARROW_LENGTH = 0.3
 MIN_SEPARATION = 1e-6
 SCALE_RANGE = (1e-3, 1e3)
 ROTATION_RANGE = (-360.0, 360.0)
+#: The range a point handle's ``reach`` may take, degrees.
+REACH_RANGE = (0.5, 90.0)
 
 LonLat = tuple[float, float]
 
@@ -103,6 +107,13 @@ class PointHandle:
     scale : float
         Magnification at the target, ``> 0``.
     id : str, optional
+    reach : float, optional
+        Degrees (in :data:`REACH_RANGE`): with the still background (``options.anchor``
+        set) the turn and zoom hold within a third of it around the target, fade out
+        monotonically up to it, and nothing of them is left beyond it
+        (:mod:`omniwidget.method.reach`). ``None``: the default,
+        :func:`omniwidget.method.reach.default_reach` (half the way to the nearest other
+        handle, at most 15°). Ignored by the paper's method (``anchor: null``).
     """
 
     position: LonLat
@@ -110,6 +121,7 @@ class PointHandle:
     rotation: float = 0.0
     scale: float = 1.0
     id: str | None = None
+    reach: float | None = None
     kind: Literal["point"] = field(default="point", init=False)
 
     @property
@@ -374,7 +386,7 @@ def _constant(name: str) -> float:
 
 
 _HANDLE_FIELDS = {
-    "point": ({"kind", "position"}, {"target", "rotation", "scale", "id"}),
+    "point": ({"kind", "position"}, {"target", "rotation", "scale", "reach", "id"}),
     "line": ({"kind", "start", "end"}, {"rectify", "targets", "id"}),
     "cage": ({"kind", "vertices"}, {"targets", "id"}),
 }
@@ -462,6 +474,7 @@ def _parse_handle(data: Any, index: int) -> Handle:
             rotation=_number(_given(data, "rotation", 0.0), f"{where}.rotation", *ROTATION_RANGE),
             scale=_number(_given(data, "scale", 1.0), f"{where}.scale", *SCALE_RANGE),
             id=hid,
+            reach=None if data.get("reach") is None else _number(data["reach"], f"{where}.reach", *REACH_RANGE),
         )
     if kind == "line":
         rectify = _given(data, "rectify", data.get("targets") is None)
@@ -491,6 +504,8 @@ def _validate_handle(h: Handle, where: str) -> None:
             _lonlat(h.target, f"{where}.target")
         _number(h.rotation, f"{where}.rotation", *ROTATION_RANGE)
         _number(h.scale, f"{where}.scale", *SCALE_RANGE)
+        if h.reach is not None:
+            _number(h.reach, f"{where}.reach", *REACH_RANGE)
     elif isinstance(h, LineHandle):
         _lonlat(h.start, f"{where}.start")
         _lonlat(h.end, f"{where}.end")
@@ -574,6 +589,8 @@ def _handle_to_dict(h: Handle) -> dict[str, Any]:
             "rotation": h.rotation,
             "scale": h.scale,
         }
+        if h.reach is not None:
+            out["reach"] = h.reach
     elif isinstance(h, LineHandle):
         out = {"kind": "line", "start": _pair(h.start), "end": _pair(h.end), "rectify": h.rectify}
         if h.targets is not None:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .handles import ANCHOR_RANGE, DEFAULT_ANCHOR, FORMAT, ROTATION_RANGE, SCALE_RANGE, VERSION
+from .handles import ANCHOR_RANGE, DEFAULT_ANCHOR, FORMAT, REACH_RANGE, ROTATION_RANGE, SCALE_RANGE, VERSION
 
 __all__ = ["DRAFT", "handles_schema"]
 
@@ -59,7 +59,7 @@ def handles_schema() -> dict[str, Any]:
 
     The ranges are the library's own constants: longitude in [-180, 180] and latitude in
     [-90, 90] degrees (neither is wrapped: a value outside is refused), a point's
-    ``rotation`` in ``ROTATION_RANGE`` degrees and ``scale`` in ``SCALE_RANGE``,
+    ``rotation`` in ``ROTATION_RANGE`` degrees and ``scale`` in ``SCALE_RANGE``, ``reach`` in ``REACH_RANGE``,
     ``options.anchor`` in ``ANCHOR_RANGE`` degrees or null.
 
     Examples
@@ -101,6 +101,14 @@ def handles_schema() -> dict[str, Any]:
                 *ROTATION_RANGE, nullable=True, default=0.0, description="Degrees, counter-clockwise as seen in the image; null: 0."
             ),
             "scale": _range(*SCALE_RANGE, nullable=True, default=1.0, description="Magnification at the target, > 1 zooms in; null: 1."),
+            "reach": _range(
+                *REACH_RANGE,
+                nullable=True,
+                description=(
+                    "Degrees: with the still background the turn and zoom hold within a third of it and are gone beyond it; "
+                    "null or left out: half the way to the nearest other handle, at most 15."
+                ),
+            ),
             "id": handle_id,
         },
         "required": ["kind", "position"],

@@ -1284,3 +1284,80 @@ def kink(
             value = kink_of_curve(out[part], KINK_STEP, window)
             worst = value if math.isnan(worst) else max(worst, value)
     return worst
+
+
+def point_reach_profile(result: Any, index: int, distances: ArrayLike, directions: int = 24, step: float = 0.02) -> dict[str, NDArray]:
+    """What a point handle's turn and zoom do as a function of the distance from its target (issue 39).
+
+    On rings of ``directions`` output points at each distance from the handle's target the
+    warp's inverse map (``result.inverse_points``, the blend the image is resampled by,
+    exact at any point) is differentiated by central differences of ``step`` degrees in
+    tangent (gnomonic) frames, in the output about the point and in the input about what it
+    shows.
+
+    Parameters
+    ----------
+    result : Result or Deformation
+        Anything with ``handles`` and ``inverse_points``.
+    index : int
+        Of a point handle.
+    distances : array_like of float, shape (m,)
+        Degrees from the target, each > ``step``.
+    directions : int
+    step : float
+        Degrees.
+
+    Returns
+    -------
+    dict of str to ndarray of float64, each shape (m, directions)
+        ``"magnification"``: one over the mean of the inverse Jacobian's singular values
+        (the forward map's scale); ``"rotation"``: degrees counter-clockwise, how far the
+        ring is turned about the target, the content's bearing from the handle's position
+        (carried to the target by the handle's shift) against the output's; ``"moved"``:
+        degrees between each output point and the input point it shows; ``"det"``: the
+        inverse Jacobian's determinant (``<= 0``: a fold).
+    """
+    from ..document.handles import PointHandle
+    from ..sphere.moebius import Moebius
+
+    h = result.handles.handles[index]
+    if not isinstance(h, PointHandle):
+        raise ValueError(f"handles[{index}] is a {h.kind} handle, not a point")
+    dist = np.radians(np.asarray(distances, np.float64).reshape(-1))
+    centre = coords.lonlat_to_xyz(h.final)
+
+    def frame(p: NDArray) -> tuple[NDArray, NDArray]:
+        a = np.where(np.abs(p[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+        e1 = np.cross(p, a)
+        e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+        return e1, np.cross(p, e1)
+
+    c1, c2 = frame(centre)
+    beta = np.linspace(0.0, 2.0 * math.pi, directions, endpoint=False)
+    q = np.cos(dist)[:, None, None] * centre + np.sin(dist)[:, None, None] * (
+        np.cos(beta)[None, :, None] * c1 + np.sin(beta)[None, :, None] * c2
+    )
+    e1, e2 = frame(q)
+    hh = math.radians(step)
+    stencil = np.stack([q + hh * e1, q - hh * e1, q + hh * e2, q - hh * e2, q])
+    stencil /= np.linalg.norm(stencil, axis=-1, keepdims=True)
+    shown = coords.lonlat_to_xyz(np.asarray(result.inverse_points(coords.xyz_to_lonlat(stencil)), np.float64))
+    p = shown[4]
+    f1, f2 = frame(p)
+
+    def tangent(x: NDArray) -> NDArray:  # gnomonic coordinates about p
+        dot = np.sum(x * p, axis=-1, keepdims=True)
+        y = x / dot
+        return np.stack([np.sum(y * f1, axis=-1), np.sum(y * f2, axis=-1)], axis=-1)
+
+    j = np.stack([(tangent(shown[0]) - tangent(shown[1])) / (2 * hh), (tangent(shown[2]) - tangent(shown[3])) / (2 * hh)], axis=-1)
+    sv = np.linalg.svd(j, compute_uv=True)[1]
+    carried = Moebius.point_map(h.position, h.final).apply_xyz(p)
+    seen = np.arctan2(carried @ c2, carried @ c1)
+    turn = np.degrees(np.angle(np.exp(1j * (beta[None, :] - seen))))
+    return {
+        "magnification": 1.0 / sv.mean(axis=-1),
+        "rotation": turn,
+        "moved": np.degrees(np.arccos(np.clip(np.sum(q * p, axis=-1), -1.0, 1.0))),
+        "det": np.linalg.det(j),
+    }

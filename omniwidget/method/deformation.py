@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -28,8 +28,12 @@ from .background import BACKGROUND_EASE, cage_insides, carry_insides, ease_backg
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .locate import interpolate, locate_points
 from .mesh import adaptive_mesh
+from .reach import reach_samples, solved, with_reach
 
 __all__ = ["Deformation", "blended_points", "deform"]
+
+#: An empty set of constraints, to strip a solve's controls of its ladders (:func:`.reach.solved`).
+_EMPTY = Constraints((), np.zeros((0, 3)), np.zeros((0, 0)), ())
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -53,9 +57,12 @@ class Deformation:
     weights : ndarray of float64 or None
         The blend's weights per mesh vertex and control, (n, k): the bounded biharmonic
         weights normalised, and with a still background eased
-        (:func:`~omniwidget.method.background.ease_background`).
+        (:func:`~omniwidget.method.background.ease_background`) and spread over the
+        ladders of the point handles that turn or zoom (:func:`~omniwidget.method.reach.with_reach`:
+        their rungs' columns come before the background's, and ``raw_weights`` has none).
     raw_weights : ndarray of float64 or None
-        The bounded biharmonic weights before the rows were normalised, (n, k): what
+        The bounded biharmonic weights before the rows were normalised, (n, k'), one column
+        per control of :func:`~omniwidget.method.reach.solved` (no rungs): what
         :func:`omniwidget.method.bbw.bbw` solved for, kept so that the next solve of a
         similar document can start from them (``deform(..., previous=...)``).
     warnings : tuple of str
@@ -189,13 +196,15 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
         return Deformation(handles=handles, constraints=constraints, warnings=tuple(problems), timings=timings)
 
     problems += _inside_fixed_cages(handles) + _crossing_lines(constraints)
-    mesh = adaptive_mesh(constraints.points)
+    extra_samples = reach_samples(handles) if handles.options.anchor is not None else np.empty((0, 3))
+    mesh = adaptive_mesh(np.vstack([constraints.points, extra_samples]))
+    sample_index = mesh.sample_index[: len(constraints.points)]
     lap("mesh")
     fixed, fixed_values, insides = np.empty(0, dtype=np.int64), np.empty((0, 0)), []
     if handles.options.anchor is not None:
         insides = cage_insides(constraints, mesh.vertices)
         constraints, fixed, fixed_values = with_background(constraints, mesh.vertices, handles.options.anchor, insides)
-    b, bc, clashes = _merge_duplicates(mesh.sample_index, constraints.values, constraints.controls)
+    b, bc, clashes = _merge_duplicates(sample_index, constraints.values, constraints.controls)
     extra = ~np.isin(fixed, b)
     if extra.any():  # the background's still vertices and the points' disks
         fixed, first = np.unique(fixed[extra], return_index=True)
@@ -209,6 +218,7 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
     weights = normalize_rows(raw)
     if handles.options.anchor is not None:
         weights = ease_background(carry_insides(weights, insides), BACKGROUND_EASE)
+        constraints, weights = with_reach(handles, constraints, mesh.vertices, weights)
     lap("weights")
     return Deformation(
         handles=handles,
@@ -360,11 +370,14 @@ def _previous_weights(previous: Solved | None, vertices: NDArray, faces: NDArray
 
 def _warm_start(previous: Solved | None, constraints: Constraints, vertices: NDArray) -> NDArray[np.float64] | None:
     """The previous warp's raw weights interpolated at the new mesh's vertices, when its controls are the same ones."""
-    if previous is None or previous.raw_weights is None or len(previous.controls) != len(constraints.controls):
+    if previous is None or previous.raw_weights is None:
+        return None
+    before = solved(replace(_EMPTY, controls=previous.controls, values=np.zeros((0, len(previous.controls))))).controls
+    if len(before) != len(constraints.controls):
         return None
     if previous.vertices is None or previous.faces is None:  # weights without their mesh: nothing to interpolate
         return None
-    if any(p.handle != c.handle or p.label != c.label for p, c in zip(previous.controls, constraints.controls, strict=True)):
+    if any(p.handle != c.handle or p.label != c.label for p, c in zip(before, constraints.controls, strict=True)):
         return None
     from scipy.spatial import cKDTree
 
