@@ -667,3 +667,36 @@ def test_save_image_writes_the_full_size_result_and_downloads_it(jupyter_server,
         assert np.array_equal(ow.read_image(room), ow.sample_image())  # the input is untouched
         nb.screenshot("editor_save_image")
         assert nb.console_errors() == [], "\n".join(nb.console_errors())
+
+
+def test_a_points_reach_ring_dragged_sets_its_reach_and_undo_brings_it_back(jupyter_server, browser):
+    """Issue 39: the selected point's reach is a ring round it (the kernel's default, 15° here); dragged, ``reach`` is one edit."""
+    point = {"kind": "point", "position": [100.0, -10.0], "scale": 1.5}
+    with _editor_with(jupyter_server, browser, "reach", point, "the result with the line and the point") as (nb, client, generation):
+        page = nb.page
+        nb.output('[data-stage="transform"]').click()
+        centre = kernel_json(client, "ed.outputs[1]")[0]
+        result = Pane(nb, "result")
+        page.mouse.click(*result.at(centre))  # selects the point: its ring is drawn
+        shown = bh.wait_until(
+            lambda: result.canvas.get_attribute("data-reach"), timeout=20, description="the ring drawn", diagnostics=nb.diagnostics
+        )
+        assert float(shown) == pytest.approx(15.0, abs=0.01)  # half the way to the line is more: the default's 15°
+        assert kernel_json(client, "ed.handles['handles'][1].get('reach')") is None
+        north = (centre[0], centre[1] + 15.0)
+        drag(page, [result.at(north), result.at((north[0], north[1] + 4.0)), result.at((north[0], north[1] + 8.0))])
+        reach = bh.wait_until(
+            lambda: kernel_json(client, "ed.handles['handles'][1].get('reach')"), timeout=20, description="the ring's drag in the kernel"
+        )
+        assert reach == pytest.approx(23.0, abs=0.75), reach  # 8° farther out (a pixel is about 0.6° here)
+        generation = wait_idle(nb, generation, "the result with the new reach")
+        assert float(result.canvas.get_attribute("data-reach")) == pytest.approx(reach, abs=0.01)
+        page.keyboard.press("Control+z")
+        bh.wait_until(
+            lambda: kernel_json(client, "ed.handles['handles'][1].get('reach')") is None,
+            timeout=20,
+            description="Ctrl+Z to undo the ring's drag",
+        )
+        wait_idle(nb, generation, "the result after undo")
+        assert float(result.canvas.get_attribute("data-reach")) == pytest.approx(15.0, abs=0.01)
+        assert nb.console_errors() == [], "\n".join(nb.console_errors())

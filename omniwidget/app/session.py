@@ -304,6 +304,20 @@ def _count(doc: Handles) -> str:
     return f"{len(doc)} handle" if len(doc) == 1 else f"{len(doc)} handles"
 
 
+def _reaches(handles: Any) -> list[float | None]:
+    """Per handle, a point's reach in degrees (its ``reach``, or the default the method takes), None for the others.
+
+    The editor draws it as the ring round a selected point (:mod:`omniwidget.method.reach`).
+    """
+    from ..document.handles import PointHandle
+    from ..method.reach import default_reach
+
+    return [
+        (h.reach if h.reach is not None else default_reach(handles, i)) if isinstance(h, PointHandle) else None
+        for i, h in enumerate(handles.handles)
+    ]
+
+
 def _kept_lines(result: Any) -> list[int]:
     """Rectified lines over or close to a pole that the still background keeps as they are (identity map)."""
     if result.handles.options.anchor is None:
@@ -664,6 +678,7 @@ class EditingSession:
                     "warnings": list(result.warnings),
                     "conflicts": conflicts,
                     "kept": kept,
+                    "reaches": _reaches(result.handles),
                     "fold_area": float(result.folds.area),
                     "seconds": seconds,
                     "width": int(result.image.shape[1]),

@@ -170,7 +170,10 @@ class Editor(anywidget.AnyWidget):
         it, a file that could not be read or written), ``warnings`` (conflicts and
         fold-overs, naming handles), ``conflicts`` (their indices), ``kept`` (the indices of
         rectified lines over or close to a pole that the still background keeps as they are:
-        drawn dashed in green, their warning shown on hover), ``fold_area`` (share of
+        drawn dashed in green, their warning shown on hover), ``reaches`` (per handle a
+        point's reach in degrees, its ``reach`` or the default the method takes, None for
+        lines and cages: the dashed ring drawn round the selected point, which a drag sets
+        as one edit), ``fold_area`` (share of
         the sphere shown turned over), ``seconds`` and ``width`` of the last computation;
         for a video, ``video`` once Save video was asked for: ``state`` ("map", "running",
         "done", "cancelled" or "error"), ``done`` and ``total`` frames, ``fps``, ``path``

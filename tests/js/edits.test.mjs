@@ -152,3 +152,13 @@ test("an edit's result shares no array with its input", () => {
   out.handles[3].vertices[0][0] = -1;
   assert.equal(DOC.handles[3].vertices[0][0], 100);
 });
+
+test("setReach sets a point's reach as one new document, in its range, and leaves other handles alone", () => {
+  const out = pure(e.setReach, DOC, 1, 22.345);
+  assert.equal(out.handles[1].reach, 22.35);
+  assert.deepEqual(out.handles.filter((_, i) => i !== 1), DOC.handles.filter((_, i) => i !== 1));
+  assert.equal(e.setReach(DOC, 1, 0.01).handles[1].reach, e.REACH_RANGE[0]);
+  assert.equal(e.setReach(DOC, 1, 400).handles[1].reach, e.REACH_RANGE[1]);
+  assert.equal(e.setReach(DOC, 2, 10), DOC); // a line has no reach
+  assert.equal(e.setReach(DOC, 1, NaN), DOC);
+});

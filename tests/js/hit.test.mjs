@@ -2,7 +2,7 @@
 // an arc within HIT_EDGE pixels, nothing farther; across the seam too.
 import { test } from "node:test";
 import assert from "node:assert/strict";
-import { HIT, HIT_EDGE, hitTest, onCurve, pointDistance, segmentDistance } from "../../omniwidget/widget/static/hit.js";
+import { HIT, HIT_EDGE, hitTest, onCurve, onRing, pointDistance, segmentDistance } from "../../omniwidget/widget/static/hit.js";
 import { controlPoints, curves } from "../../omniwidget/widget/static/handles.js";
 import { fitView, toScreen } from "../../omniwidget/widget/static/view.js";
 
@@ -81,4 +81,15 @@ test("onCurve: a line's arc within HIT_EDGE pixels", () => {
   assert.ok(onCurve(VIEW, line, pts, mx, my + HIT_EDGE - 0.1));
   assert.ok(!onCurve(VIEW, line, pts, mx, my + HIT_EDGE + 0.5));
   assert.ok(onCurve(VIEW, line, pts, mx, my + 10, 12)); // a tolerance of its own
+});
+
+test("onRing: on the reach's ring within HIT_EDGE pixels, not inside it nor at its centre, across the seam too", () => {
+  const view = fitView(720, 360); // 2 px a degree
+  const [x, y] = toScreen(view, [30, 35]); // 15° north of (30, 20)
+  assert.ok(onRing(view, [30, 20], 15, x, y));
+  assert.ok(onRing(view, [30, 20], 15, x, y - HIT_EDGE + 1));
+  assert.ok(!onRing(view, [30, 20], 15, x, y + 3 * HIT_EDGE));
+  assert.ok(!onRing(view, [30, 20], 15, ...toScreen(view, [30, 20])));
+  const [sx, sy] = toScreen(view, [-172, 0]); // 8° east of 180, seen across the seam
+  assert.ok(onRing(view, [180, 0], 8, sx, sy));
 });

@@ -115,3 +115,13 @@ test("circleArc: through b, from a to c, on one circle of the sphere", () => {
   for (const q of arc) near(s.distance(centre, q), radius, 1e-9, "one circle");
   assert.deepEqual(s.circleArc([0, 0], [0, 0], [10, 0]), [[0, 0], [0, 0], [10, 0]]); // no circle: the points as they are
 });
+
+test("circle: every point the radius from the centre, closed, at the poles and across the seam too", () => {
+  for (const [centre, radius] of [[[30, 20], 15], [[0, 90], 10], [[45, -90], 25], [[179.5, -40], 8]]) {
+    const ring = s.circle(centre, radius);
+    assert.equal(ring.length, 97);
+    for (const q of ring) assert.ok(Math.abs(s.distance(q, centre) - radius) < 1e-9, `${q} from ${centre}`);
+    assert.ok(s.distance(ring[0], ring.at(-1)) < 1e-9, "closed");
+    for (let i = 1; i < ring.length; i++) assert.ok(s.distance(ring[i - 1], ring[i]) < (2 * Math.PI * radius) / 96 + 1e-9);
+  }
+});

@@ -17,12 +17,12 @@
 // frame with the handle's maps rebuilt here (moebius.js), and the kernel's exact result
 // replaces the live frame once it arrives.
 
-import { addHandle, dragPoints, moveOnInput, moveOnResult, newCage, newLine, newPoint, removeHandle } from "./edits.js";
+import { addHandle, dragPoints, moveOnInput, moveOnResult, newCage, newLine, newPoint, removeHandle, setReach } from "./edits.js";
 import { controlPoints, curves } from "./handles.js";
-import { HIT, hitTest, onCurve, pointDistance } from "./hit.js";
+import { HIT, hitTest, onCurve, onRing, pointDistance } from "./hit.js";
 import { createLive, MOVING_PIXELS } from "./live.js";
 import { dragMaps, inverse } from "./moebius.js";
-import { geodesic } from "./sphere.js";
+import { circle, distance, geodesic } from "./sphere.js";
 import { detectRunning, detectStatusText, suggestionArc, suggestionAt } from "./suggest.js";
 import { frameLabel, videoRunning, videoStatusText } from "./video.js";
 import { copies, fitView, panBy, screenPath, screenToLonLat, toScreen, zoomAt } from "./view.js";
@@ -754,7 +754,32 @@ function drawHandles(ed, p, offsets) {
       dotAt(ed, p, q, offsets, tip ? 4 : 5, fill, tip ? "square" : "circle");
     });
   });
+  drawReach(ed, p, offsets);
   if (ed.state.drawing && p.kind === "input") drawDrawing(ed, p, offsets);
+}
+
+// A point handle's reach (degrees): as the ring's drag has it, the document's, the kernel's default, or 15.
+function reachOf(ed, i) {
+  const d = ed.state.drag;
+  if (d && d.type === "reach" && d.index === i) return d.reach;
+  const h = items(ed)[i];
+  if (h && h.reach != null) return h.reach;
+  const given = (status(ed).reaches || [])[i];
+  return given != null ? given : 15;
+}
+
+// The selected point's reach, a dashed ring round its centre on either pane; dragged, it sets `reach`.
+function drawReach(ed, p, offsets) {
+  const i = selected(ed);
+  const h = items(ed)[i];
+  if (!h || h.kind !== "point") return;
+  const ctx = p.ctx;
+  ctx.lineWidth = 1.5;
+  ctx.strokeStyle = COLORS.selected;
+  ctx.setLineDash([6, 4]);
+  strokePath(ed, p, circle(positions(ed, i, p.kind)[0], reachOf(ed, i)), offsets);
+  ctx.setLineDash([]);
+  p.canvas.dataset.reach = reachOf(ed, i).toFixed(2); // for the browser tests
 }
 
 // The suggested lines, dashed: none is a handle until a click accepts it.
@@ -975,6 +1000,12 @@ function onDown(ed, p, e) {
     command(ed, "accept_suggestion", { key: suggested.key }); // the kernel adds it as a line handle: one edit
     return;
   }
+  const sel = selected(ed);
+  const ringed = !found && !suggested && state.showHandles && items(ed)[sel] && items(ed)[sel].kind === "point";
+  if (ringed && onRing(state.view, positions(ed, sel, p.kind)[0], reachOf(ed, sel), x, y)) {
+    state.drag = { type: "reach", pane: p.kind, index: sel, centre: positions(ed, sel, p.kind)[0], reach: reachOf(ed, sel), moved: false };
+    return;
+  }
   if (!found) {
     select(ed, -1);
     state.drag = { type: "pan", x, y, view: { ...state.view } };
@@ -1017,6 +1048,12 @@ function onMove(ed, p, e) {
     draw(ed);
     return;
   }
+  if (d && d.type === "reach") {
+    d.moved = true;
+    d.reach = Math.min(90, Math.max(0.5, distance(at, d.centre)));
+    draw(ed);
+    return;
+  }
   if (d && d.type === "move") {
     d.moved = true;
     d.points = dragPoints(d, at);
@@ -1056,6 +1093,11 @@ function onUp(ed, p, e) {
   if (state.drawing && state.drawing.kind === "line" && e.button === 0) {
     const [x, y] = pointerAt(p, e);
     finishLine(ed, screenToLonLat(state.view, x, y));
+    return;
+  }
+  if (d && d.type === "reach" && d.moved) {
+    commit(ed, setReach(doc(ed), d.index, d.reach)); // one edit: the kernel's undo brings the old reach back
+    draw(ed);
     return;
   }
   if (!d || d.type !== "move" || !d.moved) {

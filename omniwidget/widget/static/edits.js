@@ -156,3 +156,21 @@ export function moveOnResult(doc, index, part, points) {
   } else h.targets = pts;
   return next;
 }
+
+/** The range a point handle's `reach` may take, degrees (handles.REACH_RANGE). */
+export const REACH_RANGE = [0.5, 90];
+
+/**
+ * The document with point handle `index`'s reach set (its ring dragged): `reach` degrees,
+ * kept in REACH_RANGE and rounded to 0.01°; any other handle leaves the document as it is.
+ * @param {HandlesDocument} doc
+ * @param {number} index
+ * @param {number} reach degrees
+ * @returns {HandlesDocument}
+ */
+export function setReach(doc, index, reach) {
+  const h = doc.handles[index];
+  if (!h || h.kind !== "point" || !Number.isFinite(reach)) return doc;
+  const r = Math.round(Math.min(REACH_RANGE[1], Math.max(REACH_RANGE[0], reach)) * 100) / 100;
+  return { ...doc, handles: doc.handles.map((x, i) => (i === index ? { ...x, reach: r } : x)) };
+}

@@ -9,7 +9,7 @@ import { alongEast, circleArc, geodesic, midpoint } from "./sphere.js";
 /**
  * A point handle: `position` goes to `target`, magnified by `scale` and turned by
  * `rotation` degrees counter-clockwise there.
- * @typedef {{kind: "point", position: LonLat, target?: LonLat, rotation?: number, scale?: number}} PointHandle
+ * @typedef {{kind: "point", position: LonLat, target?: LonLat, rotation?: number, scale?: number, reach?: number | null}} PointHandle
  */
 /**
  * A line handle from `start` to `end`; `rectify` to straighten it, `targets` its three

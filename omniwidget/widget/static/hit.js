@@ -4,6 +4,7 @@
 // tests/js/hit.test.mjs.
 
 import { curves } from "./handles.js";
+import { circle } from "./sphere.js";
 import { nearestX, toScreen } from "./view.js";
 
 /** @typedef {import("./sphere.js").LonLat} LonLat */
@@ -103,4 +104,25 @@ export function hitTest(view, handles, positions, x, y, selected) {
     if (onCurve(view, handles[i], positions[i], x, y)) return { index: i, part: -1 };
   }
   return null;
+}
+
+/**
+ * Whether (x, y) is within `tolerance` pixels of the ring `radius` degrees round `centre`
+ * (a selected point handle's reach).
+ * @param {View} view
+ * @param {LonLat} centre [lon, lat] in degrees
+ * @param {number} radius degrees
+ * @param {number} x CSS pixels
+ * @param {number} y CSS pixels
+ * @param {number} [tolerance] CSS pixels
+ * @returns {boolean}
+ */
+export function onRing(view, centre, radius, x, y, tolerance = HIT_EDGE) {
+  const s = circle(centre, radius).map((q) => toScreen(view, q));
+  for (let j = 1; j < s.length; j++) {
+    const ax = nearestX(view, s[j - 1][0], x);
+    const bx = nearestX(view, s[j][0], ax);
+    if (segmentDistance(x, y, ax, s[j - 1][1], bx, s[j][1]) <= tolerance) return true;
+  }
+  return false;
 }

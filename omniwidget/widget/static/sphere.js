@@ -178,3 +178,24 @@ export function circleArc(a, b, c) {
 export function geodesic(a, b) {
   return circleArc(a, midpoint(a, b), b);
 }
+
+/**
+ * The circle of points `radius` degrees from `centre`, closed (the first point again at the
+ * end): a point handle's reach, drawn as a ring. Well defined at the poles.
+ * @param {LonLat} centre [lon, lat] in degrees
+ * @param {number} radius degrees
+ * @param {number} [count] points on the circle
+ * @returns {LonLat[]}
+ */
+export function circle(centre, radius, count = 96) {
+  const c = lonlatToXYZ(centre);
+  const a = Math.abs(c[2]) < 0.9 ? [0, 0, 1] : [1, 0, 0];
+  const across = cross(a, c);
+  const e1 = scaled(across, 1 / norm(across));
+  const e2 = cross(c, e1);
+  const r = radius * DEG;
+  return Array.from({ length: count + 1 }, (_, k) => {
+    const t = (2 * Math.PI * k) / count;
+    return xyzToLonLat(add(scaled(c, Math.cos(r)), add(scaled(e1, Math.sin(r) * Math.cos(t)), scaled(e2, Math.sin(r) * Math.sin(t)))));
+  });
+}
