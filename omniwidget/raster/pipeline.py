@@ -13,7 +13,7 @@ import math
 import threading
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -25,7 +25,7 @@ from ..document.handles import Handles
 from ..method.background import BACKGROUND
 from ..method.constraints import POINT_HOLD, SAMPLES, Control
 from ..method.deformation import Deformation, deform
-from ..method.locate import interpolate, locate_grid
+from ..method.locate import interpolate, locate_grid, locate_points
 from ..sphere import coords
 from ..sphere.moebius import Moebius
 from . import _kernels
@@ -54,6 +54,8 @@ __all__ = ["FOLD_WARNING_AREA", "BlendWarning", "Result", "blend_coordinates", "
 #: Fold-overs covering at least this share of the sphere are reported as a BlendWarning
 #: (1e-5 is about 20 pixels at 2048 x 1024); smaller ones only show in ``Result.folds``.
 FOLD_WARNING_AREA = 1e-5
+#: The shares of their maps that :func:`_give_way` tries for the handles where the blend still folds, in turn.
+GIVE_WAY = (0.75, 0.5, 0.25, 0.0)
 #: Rounds of untangling in the default mode (:func:`_untangled`).
 UNTANGLE_ROUNDS = 3
 
@@ -320,6 +322,43 @@ def _held_pixels(d: Deformation, width: int) -> NDArray[np.bool_]:
     return mask
 
 
+def _give_way(
+    d: Deformation, folds: FoldOver, width: int, src_width: int, exact: bool
+) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch], list[str]]:
+    """The deformation with the maps of the handles where it still folds relaxed toward the identity, as little as clears it.
+
+    The controls whose weight is at least 0.1 at a turned-over pixel are relaxed together:
+    each map ``M`` becomes ``M^t`` (:meth:`~omniwidget.sphere.moebius.Moebius.power`), and
+    the first ``t`` of :data:`GIVE_WAY` whose blend, untangled, turns nothing over is kept; at
+    ``t = 0`` those maps are the identity and the blend is the still background's there. Returns the deformation, the coordinates, their fold check,
+    the untangled windows and the warning that says who gave way and how far.
+    """
+    if d.vertices is None or d.faces is None or d.weights is None:
+        raise ValueError("the deformation has no weights: one Möbius map does it all (warp_moebius)")
+    lon, lat = coords.grid_lonlat(width)
+    rows, cols = np.nonzero(folds.mask)
+    face, bary = locate_points(d.vertices, d.faces, coords.lonlat_to_xyz(np.stack([lon[cols], lat[rows]], axis=-1)))
+    strong = interpolate(d.weights, d.faces, face, bary).max(axis=0) >= 0.1
+    involved = {j for j in np.flatnonzero(strong) if d.controls[j].handle != BACKGROUND}
+
+    def attempt(t: float) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch]]:
+        controls = tuple(replace(c, moebius=c.moebius.power(t)) if j in involved else c for j, c in enumerate(d.controls))
+        relaxed = replace(d, constraints=replace(d.constraints, controls=controls))
+        coordinates, turned, _ = blend_coordinates(relaxed, width, src_width, exact=exact)
+        keep = line_mask([px for _, px in _line_pixels(relaxed, width)], width) | _held_pixels(relaxed, width)
+        return (relaxed, *_untangled(coordinates, turned, src_width, keep))
+
+    for t in GIVE_WAY:  # the first share whose blend, untangled, turns nothing over
+        relaxed, coordinates, left, patches = attempt(t)
+        if left.area == 0:
+            break
+    names = " and ".join(f"handles[{h}] ({d.handles.handles[h].kind})" for h in sorted({d.controls[j].handle for j in involved}))
+    said = f"{names} give way where their blend folded beyond untangling: their maps are taken {100 * t:.0f}% of the way"
+    if left.area > 0:
+        said += f", and {100 * left.area:.3g}% of the sphere is still shown turned over"
+    return relaxed, coordinates, left, patches, [said]
+
+
 def _untangled(
     coordinates: NDArray[np.float32], folds: FoldOver, src_width: int, keep: NDArray[np.bool_]
 ) -> tuple[NDArray[np.float32], FoldOver, list[Patch]]:
@@ -402,15 +441,21 @@ def warp(
         laps("resampling")
     else:
         coordinates, folds, at_folds = blend_coordinates(d, width, image.shape[1], exact=exact, timings=timings)
+        mesh = d.vertices, d.faces, d.weights  # the same whatever gives way below (only maps are relaxed)
         patches: list[Patch] = []
         laps = Laps(timings)
         if folds.area > 0 and handles.options.anchor is not None:  # the default mode never folds
             lines = _line_pixels(d, width)
             keep = line_mask([px for _, px in lines], width) | _held_pixels(d, width)
-            coordinates, folds, patches = _untangled(coordinates, folds, image.shape[1], keep)
+            untangled, left, patches = _untangled(coordinates, folds, image.shape[1], keep)
+            if left.area > 0:  # folds no window clears: the handles there give way as little as clears them
+                d, untangled, left, patches, given = _give_way(d, left, width, image.shape[1], exact)
+                problems += given
+                lines = _line_pixels(d, width)
+            coordinates, folds = untangled, left
             problems += _lines_given_way(handles, lines, patches)
             laps("untangle")
-        inverse = patched_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], d.vertices, d.faces, d.weights, width), patches)
+        inverse = patched_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], *mesh, width), patches)
         out = remap(pad_panorama(image), coordinates, order)
         laps("resampling")
         if at_folds is not None and (patches or folds.area >= FOLD_WARNING_AREA):

@@ -34,11 +34,15 @@ __all__ = ["MARGIN", "Patch", "apply_patches", "line_mask", "line_pixels", "patc
 MARGIN = 6
 #: The most vertices along a side of a window's grid; larger windows take a coarser grid.
 GRID_SIDE = 32
+#: A turned-over patch wider or taller than the output's width over this is not untangled.
+LARGEST = 6
 #: A window reaches this many times the turned-over patch's size beyond it (at least :data:`MARGIN`), so that the
 #: untangled map has room to spread what it gathers.
 SPREAD = 1.0
 #: The regularisation ``ε`` at which the energy is a barrier: no step may turn a triangle over.
 BARRIER = 1e-12
+#: Stages of the untangling, ``ε`` ten times smaller each (a grid not untangled by then is given up).
+EPSILON_ROUNDS = 6
 #: Quasi-Newton steps per stage of the untangling.
 ITERATIONS = 60
 #: Weight of the area term against the shape term in the untangling energy (their ``λ``).
@@ -128,6 +132,8 @@ def untangle(
         if region.size and region.all():  # inside a window already untangled
             continue
         size = max(box[0].stop - box[0].start, box[1].stop - box[1].start)
+        if size > width // LARGEST:  # no window holds it (the handles give way instead: raster.pipeline)
+            continue
         spread = min(max(MARGIN, round(SPREAD * size)), width // 16)
         # every window keeping the lines first; only when none clears it do the lines give way
         tries = [(margin, with_keep) for with_keep in (keep is not None, False) for margin in dict.fromkeys([spread, 2 * spread, 4 * spread, MARGIN])]
@@ -187,19 +193,42 @@ def _untangle_window(
     rim[[0, -1], :], rim[:, [0, -1]] = True, True
     if (folded & _dilate(rim)).any() or h < 3 or w < 3:
         return None
-    step = max(1, math.ceil(max(h, w) / GRID_SIDE))
-    gy = _grid_positions(h, step)
-    gx = _grid_positions(w, step)
     source = coords.lonlat_to_xyz(window)  # (h, w, 3)
     centre = source.reshape(-1, 3).sum(axis=0)
     centre /= np.linalg.norm(centre)
     if np.any(source @ centre <= 0.2):  # wider than a hemisphere's middle: no chart holds it
         return None
-    s_east, s_north = _frame(centre)
     out_lonlat = np.stack(np.meshgrid(coords.grid_lonlat(width)[0][cols], coords.grid_lonlat(width)[1][rows]), axis=-1)
     out_xyz = coords.lonlat_to_xyz(out_lonlat)
-    o_centre = out_xyz[h // 2, w // 2]
-    o_east, o_north = _frame(o_centre)
+    charts = (centre, *_frame(centre)), (out_xyz[h // 2, w // 2], *_frame(out_xyz[h // 2, w // 2]))
+    xyz: NDArray[np.float64] | bool | None = False
+    for side in (GRID_SIDE, 2 * GRID_SIDE, 3 * GRID_SIDE):  # a finer grid when the coarse one's cells still fold a pixel
+        step = max(1, math.ceil(max(h, w) / side))
+        xyz = _untangle_grid(source, out_xyz, folded, kept, step, charts)
+        if not isinstance(xyz, bool) or step == 1:
+            break
+    if not isinstance(xyz, np.ndarray):
+        return None
+    moved = float(np.degrees(np.arccos(np.clip(np.sum(xyz * source, axis=-1), -1.0, 1.0))).max())
+    return Patch(rows, cols.astype(np.int64), xyz, moved, keeps_lines=kept is not None)
+
+
+def _untangle_grid(
+    source: NDArray[np.float64],
+    out_xyz: NDArray[np.float64],
+    folded: NDArray[np.bool_],
+    kept: NDArray[np.bool_] | None,
+    step: int,
+    charts: tuple[tuple[NDArray, NDArray, NDArray], tuple[NDArray, NDArray, NDArray]],
+) -> NDArray[np.float64] | bool | None:
+    """A window's map untangled on a grid every ``step`` pixels: its pixels' source directions (h, w, 3).
+
+    None when the grid cannot be untangled (or keep what it must); False when it was, but a
+    pixel between its vertices still turns over (a finer grid may do).
+    """
+    h, w = source.shape[:2]
+    (centre, s_east, s_north), (o_centre, o_east, o_north) = charts
+    gy, gx = _grid_positions(h, step), _grid_positions(w, step)
     ref = _chart(out_xyz[np.ix_(gy, gx)], o_centre, o_east, o_north)  # (gh, gw, 2)
     start = _chart(source[np.ix_(gy, gx)], centre, s_east, s_north)
     fixed = np.zeros(start.shape[:2], bool)
@@ -214,23 +243,18 @@ def _untangle_window(
         for dy in (0, 1):
             for dx in (0, 1):
                 fixed[dy : dy + kept_cells.shape[0], dx : dx + kept_cells.shape[1]] |= kept_cells
-    triangles = _triangles(*start.shape[:2])
-    solved = _foldover_free(ref.reshape(-1, 2), start.reshape(-1, 2), triangles, fixed.ravel())
+    solved = _foldover_free(ref.reshape(-1, 2), start.reshape(-1, 2), _triangles(*start.shape[:2]), fixed.ravel())
     if solved is None:
         return None
-    solved = solved.reshape(start.shape)
     # every pixel of the window from its grid cell (the same two triangles a cell)
-    uv = _interpolate(solved, gy, gx, h, w)
+    uv = _interpolate(solved.reshape(start.shape), gy, gx, h, w)
     xyz = centre + uv[..., :1] * s_east + uv[..., 1:] * s_north
     xyz /= np.linalg.norm(xyz, axis=-1, keepdims=True)
     # the rows and columns of the rim keep the blend exactly (the grid interpolates between rim vertices), and so do kept cells
     xyz[[0, -1], :], xyz[:, [0, -1]] = source[[0, -1], :], source[:, [0, -1]]
     in_kept = kept_cells[cell_y[:, None], cell_x[None, :]]
     xyz[in_kept] = source[in_kept]
-    if turned_over(coords.xyz_to_lonlat(xyz)).any():
-        return None
-    moved = float(np.degrees(np.arccos(np.clip(np.sum(xyz * source, axis=-1), -1.0, 1.0))).max())
-    return Patch(rows, cols.astype(np.int64), xyz, moved, keeps_lines=kept is not None)
+    return False if turned_over(coords.xyz_to_lonlat(xyz)).any() else xyz
 
 
 def _dilate(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -345,7 +369,7 @@ def _foldover_free(
     d0 = determinants()
     eps = max(float(np.sqrt(1e-6 + 0.04 * min(float(d0.min()), 0.0) ** 2)), 1e-3) if d0.min() <= 0 else BARRIER
     flat = x[free].ravel()
-    for _ in range(12):
+    for _ in range(EPSILON_ROUNDS):
         flat = _lbfgs(partial(energy, eps=eps), flat, ITERATIONS)
         x[free] = flat.reshape(-1, 2)
         low = float(determinants().min())

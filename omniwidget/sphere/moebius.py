@@ -214,6 +214,35 @@ class Moebius:
         (a, b), (c, d) = self.matrix
         return Moebius(np.array([[d, -b], [-c, a]]))
 
+    def power(self, t: float) -> Moebius:
+        """The map ``t`` of the way from the identity to this one: ``exp(t log M)``, on the one-parameter group through it.
+
+        ``power(0)`` is the identity, ``power(1)`` the map itself, ``power(0.5)`` applied twice is
+        the map. The matrix (determinant 1) is taken with a trace of non-negative real part (``M``
+        and ``-M`` are the same map) and its eigenvalue ``λ`` of principal logarithm, so that
+        the path is the shortest: ``M^t = (λ^t - λ^-t) / (λ - λ^-1) M + (λ^(1-t) - λ^(t-1)) / (λ - λ^-1) I``
+        (Sylvester), ``t M + (1 - t) I`` for a parabolic map (``λ = 1``).
+
+        Parameters
+        ----------
+        t : float
+            Any real number (negative goes the other way).
+
+        Returns
+        -------
+        Moebius
+        """
+        m = self.matrix if (self.matrix[0, 0] + self.matrix[1, 1]).real >= 0 else -self.matrix
+        trace = m[0, 0] + m[1, 1]
+        lam = (trace + np.sqrt(trace * trace - 4)) / 2
+        if abs(lam) < 1:  # the other eigenvalue, so that |λ| >= 1 (either gives the same path)
+            lam = 1 / lam
+        gap = lam - 1 / lam
+        if abs(gap) < 1e-9:  # parabolic, or the identity
+            return Moebius(t * m + (1 - t) * np.eye(2))
+        up, down = np.exp(t * np.log(lam)), np.exp(-t * np.log(lam))
+        return Moebius((up - down) / gap * m + (lam * down - up / lam) / gap * np.eye(2))
+
     def is_identity(self, tol: float = 1e-12) -> bool:
         """Whether the map is the identity within ``tol`` (on the normalised matrix)."""
         m = self.matrix
