@@ -284,7 +284,7 @@ def _fold_warning(
 
 
 def _line_pixels(d: Deformation, width: int) -> list[tuple[int, NDArray[np.int64]]]:
-    """Each marked line piece's handle and output pixels (by its own map, which the blend is there)."""
+    """Each marked line piece's handle and output pixels, placed by the piece's own map (the blend's there)."""
     out = []
     for c, samples in d.constraints.lines:
         arc = float(coords.angular_distance(samples[0], samples[-1]))
@@ -301,6 +301,12 @@ def _lines_given_way(handles: Handles, lines: list[tuple[int, NDArray[np.int64]]
         "(Result.quality.relaxed says how far)"
         for h in given
     ]
+
+
+def _kept(d: Deformation, width: int) -> tuple[list[tuple[int, NDArray[np.int64]]], NDArray[np.bool_]]:
+    """The lines' pixels (:func:`_line_pixels`) and every pixel the untangling should keep as the blend has it."""
+    lines = _line_pixels(d, width)
+    return lines, line_mask([px for _, px in lines], width) | _held_pixels(d, width)
 
 
 def _held_pixels(d: Deformation, width: int) -> NDArray[np.bool_]:
@@ -330,8 +336,9 @@ def _give_way(
     The controls whose weight is at least 0.1 at a turned-over pixel are relaxed together:
     each map ``M`` becomes ``M^t`` (:meth:`~omniwidget.sphere.moebius.Moebius.power`), and
     the first ``t`` of :data:`GIVE_WAY` whose blend, untangled, turns nothing over is kept; at
-    ``t = 0`` those maps are the identity and the blend is the still background's there. Returns the deformation, the coordinates, their fold check,
-    the untangled windows and the warning that says who gave way and how far.
+    ``t = 0`` those maps are the identity and the blend is the still background's there.
+    Returns the deformation, the coordinates, their fold check, the untangled windows and the
+    warning that says who gave way and how far.
     """
     if d.vertices is None or d.faces is None or d.weights is None:
         raise ValueError("the deformation has no weights: one Möbius map does it all (warp_moebius)")
@@ -345,8 +352,7 @@ def _give_way(
         controls = tuple(replace(c, moebius=c.moebius.power(t)) if j in involved else c for j, c in enumerate(d.controls))
         relaxed = replace(d, constraints=replace(d.constraints, controls=controls))
         coordinates, turned, _ = blend_coordinates(relaxed, width, src_width, exact=exact)
-        keep = line_mask([px for _, px in _line_pixels(relaxed, width)], width) | _held_pixels(relaxed, width)
-        return (relaxed, *_untangled(coordinates, turned, src_width, keep))
+        return (relaxed, *_untangled(coordinates, turned, src_width, _kept(relaxed, width)[1]))
 
     for t in GIVE_WAY:  # the first share whose blend, untangled, turns nothing over
         relaxed, coordinates, left, patches = attempt(t)
@@ -445,8 +451,7 @@ def warp(
         patches: list[Patch] = []
         laps = Laps(timings)
         if folds.area > 0 and handles.options.anchor is not None:  # the default mode never folds
-            lines = _line_pixels(d, width)
-            keep = line_mask([px for _, px in lines], width) | _held_pixels(d, width)
+            lines, keep = _kept(d, width)
             untangled, left, patches = _untangled(coordinates, folds, image.shape[1], keep)
             if left.area > 0:  # folds no window clears: the handles there give way as little as clears them
                 d, untangled, left, patches, given = _give_way(d, left, width, image.shape[1], exact)

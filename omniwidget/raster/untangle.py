@@ -10,8 +10,11 @@ untangling of Garanzha, Kaporin, Kudryavtseva, Protais, Ray and Sokolov, "Foldov
 maps in 50 lines of code" (ACM Trans. Graph. 40(4), 2021), whose regularised energy
 (their eq. 2-3, with the barrier ``χ(D, ε) = (D + sqrt(ε² + D²)) / 2``) is minimised while
 ``ε`` shrinks until every triangle's Jacobian determinant is positive, and then once more
-for the distortion. Every handle keeps its map outside the windows; a handle whose
-samples fall inside one gives way there (:attr:`Patch.moved` says how far the map moved).
+for the distortion. Every handle keeps its map outside the windows, and inside them too
+where it can: the grid cells that a marked line, a cage's inside or a point's disk fall in
+(``keep``) keep the blend's map and the window is untangled around them. Only where the
+blend folds on such a pixel itself does it give way (:attr:`Patch.keeps_lines`;
+:attr:`Patch.moved` says how far the map moved in the window).
 """
 
 from __future__ import annotations
@@ -98,9 +101,10 @@ def untangle(
     src_width : int
         Width of the source.
     keep : ndarray of bool, shape (H, W), optional
-        Pixels whose map should stay the blend's (the marked lines, :func:`line_mask`): the
-        grid cells they fall in keep it, and the untangling works around them; a window
-        that cannot be cleared so is untangled without them, and those lines give way.
+        Pixels whose map should stay the blend's (the marked lines, :func:`line_mask`, and
+        what cages and points hold): the grid cells they fall in keep it, and the
+        untangling works around them; a window that cannot be cleared so is untangled
+        without them, and what they hold gives way there.
 
     Returns
     -------
@@ -108,8 +112,9 @@ def untangle(
         One per turned-over patch (patches closer than :data:`MARGIN` are untangled
         together); empty when nothing turns over. Each is tried in windows
         :data:`SPREAD` times its size wider (at most a sixteenth of the width), then twice
-        and four times that, then :data:`MARGIN`; a patch no window clears is left out,
-        and the fold check after it still shows it.
+        and four times that, then :data:`MARGIN`; a patch no window clears, or larger than
+        a :data:`LARGEST` th of the width, is left out, and the fold check after it still
+        shows it.
     """
     from scipy import ndimage
 
@@ -143,8 +148,8 @@ def untangle(
             if c1 - c0 >= width:
                 continue
             cols = (np.arange(c0, c1) + shift) % width
-            folded = rolled_mask_window(mask, slice(r0, r1), cols)
-            kept = rolled_mask_window(keep, slice(r0, r1), cols) if with_keep and keep is not None else None
+            folded = _window_of(mask, slice(r0, r1), cols)
+            kept = _window_of(keep, slice(r0, r1), cols) if with_keep and keep is not None else None
             window = coordinates_lonlat(coordinates[r0:r1][:, cols], src_width)
             patch = _untangle_window(window, folded, slice(r0, r1), cols, width, kept)
             if patch is not None:
@@ -173,7 +178,7 @@ def _merged(boxes: list[tuple[slice, slice]], gap: int) -> list[tuple[slice, sli
     return out
 
 
-def rolled_mask_window(mask: NDArray[np.bool_], rows: slice, cols: NDArray[np.int64]) -> NDArray[np.bool_]:
+def _window_of(mask: NDArray[np.bool_], rows: slice, cols: NDArray[np.int64]) -> NDArray[np.bool_]:
     """The fold mask on a window of rows and (wrapping) columns."""
     return mask[rows][:, cols]
 
