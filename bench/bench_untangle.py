@@ -39,21 +39,21 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     warnings.simplefilter("ignore")
     image, handles = build_scene(args.seed)
-    rounds = pipeline.UNTANGLE_ROUNDS
+    rounds, shares = pipeline.UNTANGLE_ROUNDS, pipeline.GIVE_WAY
     last = pipeline.warp(image, handles)
     times: dict[str, list[float]] = {"untangled": [], "as before": []}
     folds: dict[str, float] = {}
     untangle: list[float] = []
     for _ in range(args.repeat):
         for name, n in (("untangled", rounds), ("as before", 0)):
-            pipeline.UNTANGLE_ROUNDS = n
+            pipeline.UNTANGLE_ROUNDS, pipeline.GIVE_WAY = n, shares if n else ()
             start = time.perf_counter()
             result = pipeline.warp(image, handles, previous=last)
             times[name].append(time.perf_counter() - start)
             folds[name] = result.folds.area
             if n:
                 untangle.append(result.timings.get("untangle", 0.0))
-    pipeline.UNTANGLE_ROUNDS = rounds
+    pipeline.UNTANGLE_ROUNDS, pipeline.GIVE_WAY = rounds, shares
     now, before = statistics.median(times["untangled"]), statistics.median(times["as before"])
     print(f"12-handle scene at 2048 x 1024, seed {args.seed}, {args.repeat} warm warps each, interleaved")
     print(f"  untangled (the default now): {now:.3f} s median, fold-over {100 * folds['untangled']:.4f}% of the sphere")

@@ -318,8 +318,13 @@ def _held_pixels(d: Deformation, width: int) -> NDArray[np.bool_]:
     for _, polygon in d.constraints.cages:
         edges = np.concatenate([coords.geodesic(a, b, np.linspace(0, 1, 33)) for a, b in zip(polygon, np.roll(polygon, -1, axis=0), strict=True)])
         rows = np.flatnonzero((lat >= edges[:, 1].min() - 1) & (lat <= edges[:, 1].max() + 1))
-        grid = np.stack(np.meshgrid(lon, lat[rows]), axis=-1)
-        mask[rows] |= inside_polygon(grid, polygon)
+        cols = np.arange(width)
+        if np.abs(edges[:, 1]).max() < 80:  # the cage's longitudes only (all of them round a pole)
+            centre = float(edges[0, 0])
+            span = float(np.abs((edges[:, 0] - centre + 180) % 360 - 180).max()) + 1
+            cols = np.flatnonzero(np.abs((lon - centre + 180) % 360 - 180) <= span)
+        grid = np.stack(np.meshgrid(lon[cols], lat[rows]), axis=-1)
+        mask[np.ix_(rows, cols)] |= inside_polygon(grid, polygon)
     for _, centre in d.constraints.disks:
         c_lon, c_lat = coords.xyz_to_lonlat(centre)
         rows = np.flatnonzero(np.abs(lat - c_lat) <= POINT_HOLD + 1)
@@ -453,7 +458,7 @@ def warp(
         if folds.area > 0 and handles.options.anchor is not None:  # the default mode never folds
             lines, keep = _kept(d, width)
             untangled, left, patches = _untangled(coordinates, folds, image.shape[1], keep)
-            if left.area > 0:  # folds no window clears: the handles there give way as little as clears them
+            if left.area > 0 and GIVE_WAY:  # folds no window clears: the handles there give way as little as clears them
                 d, untangled, left, patches, given = _give_way(d, left, width, image.shape[1], exact)
                 problems += given
                 lines = _line_pixels(d, width)
