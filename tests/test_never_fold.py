@@ -26,8 +26,9 @@ from omniwidget.raster.pipeline import warp
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 PHOTOS = ("brooklyn_street_12k", "city_parking", "courtyard", "grabodrertorv", "hotel_room", "lamppost", "studio_office")
-#: The report half: odd seeds (the constants were chosen on the even ones).
-REPORT = tuple(range(1, 20, 2))
+#: Seeds of the report half (odd; the constants were chosen on the even ones) that CI warps at 2048; the bench
+#: (``python bench/bench_default.py``) measures all twenty of the half at 1024.
+REPORT = (1, 3)
 
 
 def _check_one_to_one(result, width: int) -> None:
@@ -55,7 +56,7 @@ def _warp(image, doc):
         return warp(image, doc)
 
 
-@pytest.mark.slow  # 2048 wide, the report half of every family (about 6 min); the fast loop runs its twin below
+@pytest.mark.slow  # 2048 wide, two report seeds of every family (about 4 min); the fast loop runs its twin below
 @pytest.mark.parametrize("family", FAMILIES)
 def test_the_default_mode_never_folds_on_the_report_half_at_2048(family):
     for seed in REPORT:
