@@ -607,15 +607,15 @@ def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Hand
         the grid is drawn but never marked. Horizontal edges come first, in a random order,
         then the verticals.
     ``"suggested"``
-        The lines :func:`omniwidget.detect.suggest_lines` gives on the room (the CLI's
-        ``omniwidget suggest``): the room is rendered at :data:`SUGGESTED_WIDTH` (2048,
+        The lines :func:`omniwidget.detect.suggest_lines` gives on the room (what
+        ``omniwidget suggest`` writes): the room is rendered at :data:`SUGGESTED_WIDTH` (2048,
         the detector's own analysis width) whatever ``width`` is, so the handles are the
         same at every width; ``max_lines`` is drawn in 10-40 (:data:`SUGGESTED_LINES`), and
         the handles are :func:`omniwidget.detect.suggestions_to_handles` of them, best
-        first (ids ``"suggested-1"``, ...; rectified). There are ``max_lines`` of them
+        first (ids suggested-1, suggested-2 and on; rectified). There are ``max_lines`` of them
         unless the detector finds fewer (then all it finds; never on seeds 0-39). Each
         suggestion's ground truth is the scene line it lies on (:func:`match_line`:
-        :data:`SUGGESTED_SHARE` of its samples within :data:`SUGGESTED_TOLERANCE`° of
+        :data:`SUGGESTED_SHARE` of its samples within :data:`SUGGESTED_TOLERANCE` degrees of
         it); the few that lie on no single line (an arc joining two walls' grid lines
         along the horizon, say) stay among the handles, as a person accepting every
         suggestion keeps them, and are listed in ``"unmatched_handles"``. Suggestions
