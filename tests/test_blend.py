@@ -195,9 +195,10 @@ def _check_point_into_fixed_cage(width: int, anchor: float | None) -> None:
         given = next(m for m in messages if m.startswith("the blend folded over near handles[0] (cage) and handles[1] (point); untangled"))
         assert "the warp is one-to-one" in given and " px (" in given
     # the paper's blend shows the point's content in the cage (measured 50 px of motion at 512); the default untangles
-    # the fold around the cage's edges and the point's map gives way there instead (the cage moved 0.94 px at 512)
+    # the fold around the cage's edges and the point's map gives way there instead (the cage moved 0.94 px at 512,
+    # 4.07 px at 2048: the same angle, 0.7°)
     moved = cage_motion(result.inverse_map(np.float64), CAGE)
-    assert moved > 10 if anchor is None else moved < 3, moved
+    assert moved > 10 * width / 512 if anchor is None else moved < 1.5 * width / 512, moved
 
 
 def test_handles_that_do_not_move_give_the_image_back(rng):
