@@ -56,6 +56,10 @@ __all__ = ["FOLD_WARNING_AREA", "BlendWarning", "Result", "blend_coordinates", "
 FOLD_WARNING_AREA = 1e-5
 #: The shares of their maps that :func:`_give_way` tries for the handles where the blend still folds, in turn.
 GIVE_WAY = (0.75, 0.5, 0.25, 0.0)
+#: A blend that turns more than this share of the sphere over, or in more than :data:`UNTANGLE_PATCHES` patches, is not
+#: untangled in windows (on photos with dozens of crossing suggestions that took minutes): its handles give way first.
+UNTANGLE_AREA = 0.01
+UNTANGLE_PATCHES = 24
 #: Rounds of untangling in the default mode (:func:`_untangled`).
 UNTANGLE_ROUNDS = 3
 
@@ -320,9 +324,9 @@ def _held_pixels(d: Deformation, width: int) -> NDArray[np.bool_]:
         rows = np.flatnonzero((lat >= edges[:, 1].min() - 1) & (lat <= edges[:, 1].max() + 1))
         cols = np.arange(width)
         if np.abs(edges[:, 1]).max() < 80:  # the cage's longitudes only (all of them round a pole)
-            centre = float(edges[0, 0])
-            span = float(np.abs((edges[:, 0] - centre + 180) % 360 - 180).max()) + 1
-            cols = np.flatnonzero(np.abs((lon - centre + 180) % 360 - 180) <= span)
+            middle = float(edges[0, 0])
+            span = float(np.abs((edges[:, 0] - middle + 180) % 360 - 180).max()) + 1
+            cols = np.flatnonzero(np.abs((lon - middle + 180) % 360 - 180) <= span)
         grid = np.stack(np.meshgrid(lon[cols], lat[rows]), axis=-1)
         mask[np.ix_(rows, cols)] |= inside_polygon(grid, polygon)
     for _, centre in d.constraints.disks:
@@ -341,7 +345,8 @@ def _give_way(
     The controls whose weight is at least 0.1 at a turned-over pixel are relaxed together:
     each map ``M`` becomes ``M^t`` (:meth:`~omniwidget.sphere.moebius.Moebius.power`), and
     the first ``t`` of :data:`GIVE_WAY` whose blend, untangled, turns nothing over is kept; at
-    ``t = 0`` those maps are the identity and the blend is the still background's there.
+    ``t = 0`` those maps are the identity and the blend is the still background's there; if
+    it still folds then, every handle gives way (the identity folds nothing).
     Returns the deformation, the coordinates, their fold check, the untangled windows and the
     warning that says who gave way and how far.
     """
@@ -351,7 +356,7 @@ def _give_way(
     rows, cols = np.nonzero(folds.mask)
     face, bary = locate_points(d.vertices, d.faces, coords.lonlat_to_xyz(np.stack([lon[cols], lat[rows]], axis=-1)))
     strong = interpolate(d.weights, d.faces, face, bary).max(axis=0) >= 0.1
-    involved = {j for j in np.flatnonzero(strong) if d.controls[j].handle != BACKGROUND}
+    involved = {int(j) for j in np.flatnonzero(strong) if d.controls[j].handle != BACKGROUND}
 
     def attempt(t: float) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch]]:
         controls = tuple(replace(c, moebius=c.moebius.power(t)) if j in involved else c for j, c in enumerate(d.controls))
@@ -363,11 +368,21 @@ def _give_way(
         relaxed, coordinates, left, patches = attempt(t)
         if left.area == 0:
             break
+    else:  # still folding with those maps the identity: every handle gives way (the identity everywhere folds nothing)
+        involved = {j for j, c in enumerate(d.controls) if c.handle != BACKGROUND}
+        relaxed, coordinates, left, patches = attempt(0.0)
     names = " and ".join(f"handles[{h}] ({d.handles.handles[h].kind})" for h in sorted({d.controls[j].handle for j in involved}))
     said = f"{names} give way where their blend folded beyond untangling: their maps are taken {100 * t:.0f}% of the way"
     if left.area > 0:
         said += f", and {100 * left.area:.3g}% of the sphere is still shown turned over"
     return relaxed, coordinates, left, patches, [said]
+
+
+def _patch_count(mask: NDArray[np.bool_]) -> int:
+    """How many separate turned-over patches a fold mask has."""
+    from scipy import ndimage
+
+    return int(ndimage.label(mask, structure=np.ones((3, 3), bool))[1])
 
 
 def _untangled(
@@ -378,6 +393,8 @@ def _untangled(
     Returns the coordinates, their fold check and the windows, in the order they were written.
     """
     patches: list[Patch] = []
+    if folds.area > UNTANGLE_AREA or _patch_count(folds.mask) > UNTANGLE_PATCHES:  # too much for windows: the handles give way first
+        return coordinates, folds, patches
     for _ in range(UNTANGLE_ROUNDS):  # a window that met another's is untangled again
         found = untangle(coordinates, folds.mask, src_width, keep)
         if not found:
