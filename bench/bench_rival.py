@@ -49,9 +49,11 @@ from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
+from bench_default import _fmt, _max, _median  # noqa: E402
 
 from omniwidget.detect import suggest_lines, suggestions_to_handles  # noqa: E402
 from omniwidget.document.handles import Handles, LineHandle, Options  # noqa: E402
@@ -92,25 +94,6 @@ def measure(image: np.ndarray, doc: Handles) -> dict[str, dict[str, Any]]:
 
 def _num(v: Any) -> float:
     return math.nan if v is None else float(v)
-
-
-def _max(values: list[float]) -> float:
-    if not values:
-        return math.nan
-    return math.inf if any(math.isnan(v) for v in values) else max(values)
-
-
-def _median(values: list[float]) -> float:
-    finite = [v for v in values if not math.isnan(v)]
-    return statistics.median(finite) if finite else math.nan
-
-
-def _fmt(value: float, digits: int = 2) -> str:
-    if math.isnan(value):
-        return "–"
-    if math.isinf(value):
-        return "inf"
-    return f"{value:.{digits}f}"
 
 
 HEAD = [
