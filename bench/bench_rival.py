@@ -53,7 +53,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
-from bench_default import _fmt, _max, _median  # noqa: E402
+from bench_default import _fmt, _max, _median, _plain  # noqa: E402
 
 from omniwidget.detect import suggest_lines, suggestions_to_handles  # noqa: E402
 from omniwidget.document.handles import Handles, LineHandle, Options  # noqa: E402
@@ -129,16 +129,6 @@ def table(title: str, records: list[dict[str, dict[str, Any]]]) -> str:
         ]
         out.append("| " + " | ".join(cells) + " |")
     return "\n".join(out)
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    return value
 
 
 def photo(path: Path, width: int, max_lines: int) -> tuple[np.ndarray, Handles]:
