@@ -87,9 +87,14 @@ def _check_room_with_cage_and_point(seed: int, n_lines: int, width: int) -> None
     result = warp(scene.image, _lines_doc(lines, CageHandle(CAGE), POINT))
     assert result.weights is not None and np.all(np.isfinite(result.image))
     inverse = result.inverse_map(np.float64)
-    # room 6 (12 lines, eq. 4 line by line) folds 2 pixels (8.2e-7 of the sphere) where the pieces of two
-    # lines whose ends are 1° apart meet; below the warning's threshold, and 0 before lines were cut (issue 17)
-    assert result.folds.area <= (0 if seed == 1 else 1e-6) and not result.warnings
+    # the default mode never folds (issue 30). Room 6's blend (12 lines, eq. 4 line by line) folds 2 pixels where the
+    # pieces of two lines whose ends are 1° apart meet: one window untangles them, and the warning says so and names
+    # the line (measured: the maps give way by up to 2.5 px there); room 1's blend folds nowhere, and nothing is said
+    assert result.folds.area == 0
+    if seed == 1:
+        assert not result.warnings
+    else:
+        assert len(result.warnings) == 1 and "untangled in 1 window" in result.warnings[0], result.warnings
     assert coverage(inverse) >= 0.99
     moved = cage_motion(inverse, CAGE)
     assert moved < FIXED_CAGE_PX * width / W, f"the fixed cage's inside moved {moved:.2e} px (measured 3.6e-13)"

@@ -110,12 +110,16 @@ def test_lines_and_cages_come_out_as_the_exact_map_makes_them(room, sampled):
 
 @pytest.mark.slow  # a third 2048 room, sampled and exact (13 s on a busy 2-core machine): the full suite only
 def test_a_pole_brought_into_view_is_evaluated_exactly():
-    """A turn that shows the north pole at the equator: the displacement turns about it, and is not interpolated there."""
+    """A turn that shows the north pole at the equator: the displacement turns about it, and is not interpolated there.
+
+    In the paper's mode: the default's blend of this 70° move folds, and its untangled windows are computed from each
+    map apart (the sampled one and the exact one), so they would measure the untangling, not the sampling."""
     image = synthetic_room(W, grid=0.5).image
-    doc = Handles((PointHandle((0.0, 80.0), target=(0.0, 10.0), rotation=30.0), LineHandle((90.0, -20.0), (130.0, -25.0))))
+    handles = (PointHandle((0.0, 80.0), target=(0.0, 10.0), rotation=30.0), LineHandle((90.0, -20.0), (130.0, -25.0)))
+    doc = Handles(handles, Options(anchor=None))
     fast, exact = _both(image, doc)
     error = _source_error(fast, exact)
-    # measured max 0.30 px, p99.9 0.13 px, image MAD 0.033 levels
+    # measured (paper's mode, which does not fold here) max 0.16 px, p99.9 0.071 px, image MAD 0.045 levels
     assert error.max() < SOURCE_MAX_PX and np.percentile(error, 99.9) < SOURCE_P999_PX, (error.max(), np.percentile(error, 99.9))
     assert np.abs(fast.image.astype(int) - exact.image.astype(int)).mean() < 0.25
 
