@@ -29,6 +29,8 @@ width; per family and mode the table aggregates over the half's scenes:
   the point handles (:func:`~omniwidget.evaluate.quality.point_fidelity`);
 - cages: the largest error of a cage's rigid motion inside it, px
   (:func:`~omniwidget.evaluate.quality.cage_fidelity`, against the rotation that made its targets);
+- reach (a table of its own, issue 39): each point handle's asked zoom and turn against what is seen at a third of
+  its reach (where they should hold to 10% and 2°) and what is left at the reach;
 - relaxed lines: how many lines are farther than 0.5 px from straight (``result.quality.relaxed``);
 - warp: the median and the largest seconds of ``warp`` (wall clock, after one warm-up warp; the machine's
   other load counts too).
@@ -58,11 +60,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from omniwidget.document.handles import Handles, Options  # noqa: E402
-from omniwidget.evaluate.quality import cage_fidelity, kink, point_fidelity, straightness  # noqa: E402
+from omniwidget.document.handles import Handles, Options, PointHandle  # noqa: E402
+from omniwidget.evaluate.quality import cage_fidelity, kink, point_fidelity, point_reach_profile, straightness  # noqa: E402
 from omniwidget.evaluate.scenes import FAMILIES, family_scene  # noqa: E402
+from omniwidget.method.reach import SHIFT_FREE, default_reach  # noqa: E402
 from omniwidget.raster import untangle  # noqa: E402
 from omniwidget.raster.pipeline import warp  # noqa: E402
+from omniwidget.sphere import coords  # noqa: E402
 
 MODES = {"default": Options(), "paper": Options(rectify="all", anchor=None)}
 #: A marked line continues when its scene line is longer by at least this (degrees).
@@ -86,7 +90,7 @@ def measure(image: np.ndarray, doc: Handles, truth: dict[str, Any]) -> dict[str,
     points = []
     for index in truth["point_handles"]:
         f = point_fidelity(result, index)
-        points.append({"handle": index, "centre_px": f.centre_px, "zoom_error": f.zoom_error, "rotation_error": f.rotation_error})
+        points.append({"handle": index, "centre_px": f.centre_px, "zoom_error": f.zoom_error, "rotation_error": f.rotation_error, **reach(result, index)})
     cages = [
         {"handle": index, "error_px": cage_fidelity(result, index, rotation)}
         for index, rotation in zip(truth["cage_handles"], truth["rotations"], strict=True)
@@ -106,6 +110,85 @@ def measure(image: np.ndarray, doc: Handles, truth: dict[str, Any]) -> dict[str,
         "relaxed": [list(r) for r in q.relaxed],
         "warnings": list(result.warnings),
     }
+
+
+def reach(result: Any, index: int) -> dict[str, Any]:
+    """What a point handle's turn and zoom are seen to do at a third of its reach and at its reach (issue 39).
+
+    The magnification (one over the mean singular value of the inverse map) and the turn, on 24 output points
+    a ring (:func:`~omniwidget.evaluate.quality.point_reach_profile`), against the handle's own zoom and turn.
+    """
+    h = result.handles.handles[index]
+    if not isinstance(h, PointHandle):
+        raise TypeError(f"handles[{index}] is not a point handle")
+    radius = h.reach if h.reach is not None else default_reach(result.handles, index)
+    profile = point_reach_profile(result, index, [radius / 3.0, radius])
+    mag, turn = profile["magnification"], profile["rotation"]
+    return {
+        "moved": float(coords.angular_distance(h.position, h.final)),
+        "reach": radius,
+        "scale": h.scale,
+        "rotation": h.rotation,
+        "inner_zoom_error": float(np.max(np.abs(mag[0] / h.scale - 1.0))),
+        "inner_turn_error": float(np.max(np.abs(turn[0] - h.rotation))),
+        "outer_zoom_left": float(np.max(np.abs(mag[1] - 1.0))),
+        "outer_turn_left": float(np.max(np.abs(turn[1]))),
+    }
+
+
+def reach_table(records: list[dict[str, Any]]) -> str:
+    """Rows per family and mode with point handles, the points held still (moved less than
+    :data:`~omniwidget.method.reach.SHIFT_FREE`) apart from the moved ones: the asked turn and zoom against what is
+    seen at a third of the reach (where they should hold, to 10% and 2°) and at the reach (where they should be gone).
+
+    A moved point's turn and zoom keep to its shift's weight (:func:`omniwidget.method.reach.with_reach`); only its
+    zoom is measured here: the turn is measured as a ring's bearing about the target against the content's about the
+    position, and where the shift's weight falls the two differ by the shift itself (its zoom and turn at the centre
+    are the main table's point columns).
+    """
+    head = [
+        "family",
+        "mode",
+        "points",
+        "reach ° median (range)",
+        "asked zoom (range) / turn ° (max)",
+        "zoom error at R/3: median / worst %",
+        "turn error at R/3: median / worst °",
+        "zoom left at R: worst %",
+        "turn left at R: worst °",
+        "points within 10% and 2° at R/3 (moved: 10%)",
+    ]
+    out = ["| " + " | ".join(head) + " |", "| " + " | ".join("---" for _ in head) + " |"]
+    for family in dict.fromkeys(r["family"] for r in records):
+        for mode, still in ((m, still) for m in MODES for still in (True, False)):
+            points = [
+                p
+                for r in records
+                if r["family"] == family and r["mode"] == mode
+                for p in r["points"]
+                if (p["moved"] < SHIFT_FREE) == still
+            ]
+            if not points:
+                continue
+
+            def column(key: str, points: list[dict[str, Any]] = points) -> list[float]:
+                return [p[key] for p in points]
+
+            held = sum(p["inner_zoom_error"] <= 0.1 and (p["inner_turn_error"] <= 2.0 or not still) for p in points)
+            cells = [
+                family,
+                mode,
+                f"{len(points)} {'still' if still else 'moved'}",
+                f"{_fmt(_median(column('reach')), 1)} ({_fmt(min(column('reach')), 1)}-{_fmt(max(column('reach')), 1)})",
+                f"{_fmt(min(column('scale')))}-{_fmt(max(column('scale')))} / {_fmt(max(abs(v) for v in column('rotation')), 1)}",
+                f"{_fmt(100 * _median(column('inner_zoom_error')), 1)} / {_fmt(100 * _max(column('inner_zoom_error')), 1)}",
+                f"{_fmt(_median(column('inner_turn_error')))} / {_fmt(_max(column('inner_turn_error')))}" if still else "–",
+                _fmt(100 * _max(column("outer_zoom_left")), 1),
+                _fmt(_max(column("outer_turn_left"))) if still else "–",
+                f"{held} of {len(points)}",
+            ]
+            out.append("| " + " | ".join(cells) + " |")
+    return "\n".join(out)
 
 
 def _max(values: list[float]) -> float:
@@ -266,7 +349,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--load", type=Path, help="print the summary of issue 17's figures from a --json file, without warping")
     args = parser.parse_args(argv)
     if args.load is not None:
-        print(targets(json.loads(args.load.read_text())))
+        records = json.loads(args.load.read_text())
+        print(targets(records))
+        if any(r["points"] and "reach" in r["points"][0] for r in records):
+            print("\n" + reach_table(records))
         return 0
     families = [f.strip() for f in args.families.split(",") if f.strip()]
     unknown = [f for f in families if f not in FAMILIES]
@@ -298,6 +384,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  {family} seed {seed} done", file=sys.stderr, flush=True)
         print(table(family, rows, args.width) + "\n", flush=True)
     print(targets(_plain(records)) + "\n")
+    if any(r["points"] for r in records):
+        print(reach_table(records) + "\n")
     if args.json is not None:
         args.json.write_text(json.dumps(_plain(records), indent=1) + "\n")
         print(f"per-scene figures written to {args.json}")
