@@ -88,18 +88,20 @@ def test_two_points_30_degrees_apart_each_turn_their_own_region():
     assert far.max() <= 0.1
 
 
-def test_a_point_beside_a_rectified_line_leaves_the_line_straight():
+@pytest.mark.parametrize("width", [512, pytest.param(2048, marks=pytest.mark.slow)])
+def test_a_point_beside_a_rectified_line_leaves_the_line_straight(width):
+    """The line within 0.5 px at the output's width (measured 0.11 px at 512, 0.18 px at 2048, 4x tighter in angle)."""
     from omniwidget.evaluate.scenes import family_scene
     from omniwidget.raster.pipeline import warp
 
-    scene, _, _ = family_scene("long", 1, 512)
+    scene, _, _ = family_scene("long", 1, width)
     line = LineHandle((-50.0, 25.0), (40.0, 30.0))
     point = PointHandle((-5.0, -10.0), scale=1.6, rotation=20.0)
     doc = Handles((line, point))
     reach = default_reach(doc, 1)
     assert 10.0 < reach <= DEFAULT_REACH  # half the way to the line
-    result = warp(scene.image, doc, width=512, warn=False)
-    assert max(result.quality.lines) <= 0.5
+    result = warp(scene.image, doc, width=width, warn=False)
+    assert max(result.quality.lines) <= 0.5, result.quality.lines
     check_reach(result, 1, reach, 1.6, 20.0, still=False)
     # still beyond the reach, up to the line's own neighbourhood
     assert point_reach_profile(result, 1, reach * np.array([1.0, 1.05, 1.3]), directions=48)["moved"].max() <= 0.1
