@@ -1,21 +1,70 @@
-"""Validation shared by every layer: whole numbers, images."""
+"""Validation shared by every layer: whole numbers, images, input files."""
 
 from __future__ import annotations
 
 import operator
+import os
+import stat
 from typing import SupportsIndex
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ImageError
+from .errors import ImageError, NotRegularFileError
 
-__all__ = ["SUPPORTED_DTYPES", "check_image", "check_inverse_map", "check_panorama", "whole_number"]
+__all__ = ["SUPPORTED_DTYPES", "check_image", "check_inverse_map", "check_panorama", "require_regular_file", "whole_number"]
 
 #: Sample types a panorama may have; each is kept through a warp.
 SUPPORTED_DTYPES = (np.uint8, np.uint16, np.float32, np.float64)
 _ROWS_PER_CHECK = 256  # rows of a float image checked for NaN at a time (bounded memory)
 
+#: What :func:`require_regular_file` calls each kind of file that is not a regular one.
+_SPECIAL_KINDS = (
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+    (stat.S_ISDIR, "a folder"),
+)
+
+
+def require_regular_file(path: str | os.PathLike[str], what: str) -> None:
+    """Refuse to read ``path`` when it exists but is not a regular file (a FIFO, a device, a socket, a folder).
+
+    Reading a FIFO waits for a writer that may never come, and a device such as
+    ``/dev/zero`` never ends: either would hang or exhaust the machine. The check looks
+    at the file's kind only (``os.stat``, which follows symbolic links and neither opens
+    nor blocks); a missing or unreadable path passes, and the read that follows says so in
+    its own words.
+
+    Parameters
+    ----------
+    path : path-like
+        The file about to be opened for reading.
+    what : str
+        What the file is, for the message: ``"handles file"``, ``"image"``, ``"map"``.
+
+    Raises
+    ------
+    NotRegularFileError
+        A :class:`~omniwidget.errors.OmniwidgetError` (so a ``ValueError``), one line:
+        ``"<path>: cannot read the <what>: it is a FIFO (named pipe), not a regular file"``.
+
+    Examples
+    --------
+    >>> require_regular_file("/dev/null", "handles file")
+    Traceback (most recent call last):
+    ...
+    omniwidget.errors.NotRegularFileError: /dev/null: cannot read the handles file: it is a character device, not a regular file
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):  # missing, unreadable, a name with a NUL byte: the read says it
+        return
+    if stat.S_ISREG(mode):
+        return
+    kind = next((name for test, name in _SPECIAL_KINDS if test(mode)), "a special file")
+    raise NotRegularFileError(os.fspath(path), what, kind)
 
 
 def whole_number(value: object, name: str, minimum: int = 0, *, even: bool = False) -> int:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["OmniwidgetError", "HandlesError", "ImageError", "LevelError", "VideoError"]
+__all__ = ["OmniwidgetError", "HandlesError", "ImageError", "LevelError", "NotRegularFileError", "VideoError"]
 
 
 class OmniwidgetError(ValueError):
@@ -28,3 +28,17 @@ class VideoError(ImageError):
 
 class LevelError(OmniwidgetError):
     """A panorama cannot be levelled: too few vertical edges, or edges that disagree on where up is."""
+
+
+class NotRegularFileError(OmniwidgetError):
+    """An input names a FIFO, a device, a socket or a folder where a regular file must be read.
+
+    Reading a FIFO waits for a writer that may never come; a device may never end. ``path``
+    is the file, ``kind`` what it is instead (``"a FIFO (named pipe)"``, say).
+    """
+
+    def __init__(self, path: str, what: str, kind: str) -> None:
+        self.path = path
+        self.kind = kind
+        super().__init__(f"{path}: cannot read the {what}: it is {kind}, not a regular file")
+

@@ -33,7 +33,8 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import HandlesError
+from .._checks import require_regular_file
+from ..errors import HandlesError, NotRegularFileError
 from ..sphere import coords
 from ..sphere.moebius import Moebius, frame_rotation
 
@@ -361,7 +362,10 @@ def load_handles(path: str | os.PathLike[str]) -> Handles:
     """
     path = Path(path)
     try:
+        require_regular_file(path, "handles file")  # a FIFO would hang the read, a device never end
         text = path.read_bytes()
+    except NotRegularFileError as exc:
+        raise HandlesError(str(path), f"cannot read the handles file: it is {exc.kind}, not a regular file") from None
     except OSError as exc:
         raise HandlesError(str(path), f"cannot read the handles file ({exc.strerror or exc})") from None
     try:

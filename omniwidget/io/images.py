@@ -22,9 +22,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from .._checks import SUPPORTED_DTYPES, check_image, check_panorama
+from .._checks import SUPPORTED_DTYPES, check_image, check_panorama, require_regular_file
 from .._files import atomic_write_bytes
-from ..errors import ImageError
+from ..errors import ImageError, NotRegularFileError
 
 __all__ = [
     "FITS",
@@ -373,6 +373,10 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True) -> NDA
     path = Path(path)
     if path.is_dir():
         raise ImageError(f"{path}: is a folder, not an image file")
+    try:
+        require_regular_file(path, "image")  # a FIFO would hang the read, a device never end
+    except NotRegularFileError as exc:
+        raise ImageError(str(exc)) from None
     try:
         data = path.read_bytes()
     except OSError as exc:
