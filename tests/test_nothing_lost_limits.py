@@ -87,3 +87,53 @@ def test_a_fifo_given_as_handles_is_one_line_and_exit_2_not_a_hang(tmp_path: Pat
     (tmp_path / "good.json").write_text(json.dumps(POINT))
     run = _cli("warp", str(fifo), "-H", str(tmp_path / "good.json"), "-o", str(tmp_path / "out.png"), timeout=60)
     _one_line_refusal(run, str(fifo), "cannot read the image: it is a FIFO")
+
+
+# --- the handles file: depth and duplicate keys --------------------------------------------------
+
+
+def test_a_file_nested_100000_deep_is_one_line_and_exit_2(tmp_path: Path, panorama: Path) -> None:
+    deep = tmp_path / "deep.json"
+    deep.write_text('{"handles": ' + "[" * 100_000 + "]" * 100_000 + "}")  # before: a 27-line RecursionError, exit 1
+    with pytest.raises(HandlesError, match=r"deep\.json: the JSON is nested deeper than 32 arrays and objects \(at line 1\)"):
+        load_handles(deep)
+    run = _cli("warp", str(panorama), "-H", str(deep), "-o", str(tmp_path / "out.png"))
+    _one_line_refusal(run, str(deep), "nested deeper than 32")
+    assert not (tmp_path / "out.png").exists()
+
+
+def test_the_depth_is_counted_outside_strings_only(tmp_path: Path) -> None:
+    brackets = "[{" * 40 + '\\"]'
+    doc = {"handles": [{"kind": "point", "position": [10, 20], "id": brackets}]}
+    assert load_handles(_write(tmp_path / "h.json", json.dumps(doc))).handles[0].id == brackets
+    nested = json.dumps({"handles": [{"kind": "cage", "vertices": [[0, 0], [10, 0], [5, 8]]}]}, indent=2)
+    assert len(load_handles(_write(tmp_path / "cage.json", nested)).handles) == 1
+    with pytest.raises(HandlesError, match="at line 3"):
+        load_handles(_write(tmp_path / "deep.json", '{\n"handles":\n' + "[" * 33 + "]" * 33 + "}"))
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ('{"handles": [{"kind": "point", "position": [10, 20], "target": [30, 10]}], "handles": []}', '"handles" appears twice'),
+        (
+            '{"handles": [{"kind": "point", "position": [10, 20], "position": [30, 10]}]}',
+            '"position" appears twice in one object of a point',
+        ),
+        ('{"handles": [], "options": {"anchor": 5, "anchor": null}}', '"anchor" appears twice'),
+    ],
+)
+def test_duplicate_keys_are_refused(tmp_path: Path, panorama: Path, text: str, key: str) -> None:
+    assert isinstance(json.loads(text), dict)  # before: json keeps the last of each key silently (an identity warp, exit 0)
+    path = _write(tmp_path / "dup.json", text)
+    with pytest.raises(HandlesError, match=rf"dup\.json: the key {key}"):
+        load_handles(path)
+    if 'handles" appears' in key:
+        run = _cli("warp", str(panorama), "-H", str(path), "-o", str(tmp_path / "out.png"))
+        _one_line_refusal(run, str(path), "appears twice")
+        assert not (tmp_path / "out.png").exists()

@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -44,6 +45,7 @@ __all__ = [
     "Handle",
     "Handles",
     "LineHandle",
+    "MAX_DEPTH",
     "Options",
     "PointHandle",
     "REACH_RANGE",
@@ -67,6 +69,9 @@ SCALE_RANGE = (1e-3, 1e3)
 ROTATION_RANGE = (-360.0, 360.0)
 #: The range a point handle's ``reach`` may take, degrees.
 REACH_RANGE = (0.5, 90.0)
+#: The deepest nesting of arrays and objects a handles file may have (a document needs 5):
+#: deeper JSON is refused before it is parsed.
+MAX_DEPTH = 32
 
 LonLat = tuple[float, float]
 
@@ -343,10 +348,27 @@ class Handles:
 
     @classmethod
     def from_json(cls, text: str | bytes) -> Handles:
-        """Validate and build a document from JSON text."""
+        """Validate and build a document from JSON text.
+
+        Before parsing, the nesting is measured: JSON nested deeper than
+        :data:`MAX_DEPTH` arrays and objects is refused (a handles document needs 5), so
+        that no file can exhaust the parser's recursion. An object with the same key twice
+        is refused too, instead of keeping the last silently (``"handles": [...],
+        "handles": []`` would otherwise be an empty document).
+
+        Raises
+        ------
+        HandlesError
+            Not JSON, nested too deep, a duplicate key, or any field the document refuses.
+        """
         try:
-            data = json.loads(text, parse_constant=_constant)  # a NaN is then refused by the field that holds it
+            if isinstance(text, (bytes, bytearray)):
+                text = bytes(text).decode(json.detect_encoding(text), "surrogatepass")  # as json.loads decodes bytes
+            _check_depth(text)
+            data = json.loads(text, parse_constant=_constant, object_pairs_hook=_unique_keys)  # a NaN is refused by its field
         except (ValueError, UnicodeDecodeError) as exc:
+            if isinstance(exc, HandlesError):
+                raise
             raise HandlesError("", f"not valid JSON: {exc}") from None
         return cls.from_dict(data)
 
@@ -382,6 +404,38 @@ def save_handles(handles: Handles, path: str | os.PathLike[str]) -> None:
 
 
 # --- parsing and validation -------------------------------------------------------------
+
+#: A JSON string (its brackets are not nesting), or what is left of one cut short.
+_JSON_STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"?')
+
+
+def _check_depth(text: str) -> None:
+    """Refuse JSON nested deeper than :data:`MAX_DEPTH`, counting brackets outside strings (no recursion, linear time)."""
+    outside = _JSON_STRING.sub('""', text).encode("utf-8", "surrogatepass")  # a JSON string holds no line break
+    raw = np.frombuffer(outside, np.uint8)  # a multi-byte character holds no bracket byte
+    at = np.flatnonzero((raw == 0x5B) | (raw == 0x7B) | (raw == 0x5D) | (raw == 0x7D))
+    if len(at) <= MAX_DEPTH:
+        return
+    depth = np.cumsum(np.where((raw[at] == 0x5B) | (raw[at] == 0x7B), 1, -1), dtype=np.int64)
+    if depth.max() > MAX_DEPTH:
+        where = int(at[np.argmax(depth > MAX_DEPTH)])
+        line = outside.count(b"\n", 0, where) + 1
+        raise HandlesError(
+            "", f"the JSON is nested deeper than {MAX_DEPTH} arrays and objects (at line {line}); a handles document needs 5"
+        )
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object as a dict, refusing a key given twice (``json`` would keep the last silently)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            inside = f" of a {out['kind']} handle" if isinstance(out.get("kind"), str) and key != "kind" else ""
+            raise HandlesError(
+                "", f"the key {json.dumps(key)} appears twice in one object{inside}; JSON would keep only the last, so say it once"
+            )
+        out[key] = value
+    return out
 
 
 def _constant(name: str) -> float:
