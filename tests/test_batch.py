@@ -151,7 +151,7 @@ def test_a_batch_refuses_what_would_lose_work_before_starting(files, tmp_path):
         warp_files([files / "a.jpg"], tmp_path, handles=files / "h.json", map=files / "map.npy")
     with pytest.raises(ImageError, match="share the file name"):
         warp_files([files / "a.jpg", files / "local" / "small" / "a.jpg"], tmp_path / "o", handles=files / "h.json")
-    with pytest.raises(ImageError, match="overwrite an input"):
+    with pytest.raises(ImageError, match="a.jpg would overwrite the input"):
         warp_files([files / "a.jpg"], [files / "a.jpg"], handles=files / "h.json")
     with pytest.raises(ImageError, match="output of two inputs"):
         warp_files([files / "a.jpg", files / "c.jpg"], [tmp_path / "x.png", tmp_path / "x.png"], handles=files / "h.json")

@@ -71,7 +71,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._files import remove_leftovers
+from .._files import refuse_overwrites, remove_leftovers
 from ..document.handles import Handles, load_handles
 from ..errors import ImageError, OmniwidgetError
 from ..io.video import OUTPUT_SUFFIXES as VIDEO_OUTPUT_SUFFIXES
@@ -364,18 +364,20 @@ def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[
     out = remap(pad_panorama(frame), coordinates, recipe.order)
     if make_folder:
         target.parent.mkdir(exist_ok=True)
-    remove_leftovers(target)
-    write_image(target, out)
+    write_image(target, out)  # what a killed attempt left beside it is removed first (omniwidget._files)
     return time.perf_counter() - start, map_seconds, warnings
 
 
 # --- videos: cut into time ranges, each warped by a task, then joined without re-encoding ---------
 
 
-def _plan_video(src: str, segment_seconds: float) -> tuple[int, tuple[tuple[float | None, float | None], ...]]:
+def _plan_video(src: str, dst: str, segment_seconds: float) -> tuple[int, tuple[tuple[float | None, float | None], ...]]:
     """The video's frame width, and the time ranges ``(start, end)`` it is cut into.
 
-    The ranges are in seconds on its timeline (None: open), equal, about ``segment_seconds`` long.
+    The ranges are in seconds on its timeline (None: open), equal, about ``segment_seconds``
+    long. The ranges a killed batch cut otherwise left beside ``dst`` are removed, before any
+    range of this one is written; those of this count are this batch's (a plan run again when
+    its worker died while the ranges were written) or are written over and removed by it.
     """
     from ..errors import VideoError
     from ..io.video import probe_video
@@ -385,6 +387,7 @@ def _plan_video(src: str, segment_seconds: float) -> tuple[int, tuple[tuple[floa
     if problem is not None:
         raise VideoError(f"{src}: {problem}")
     count = max(1, round(info.duration / segment_seconds)) if info.duration else 1
+    _remove_segments(_stale_segments(Path(dst), count))
     cuts: list[float | None] = [info.start + k * info.duration / count for k in range(1, count)] if info.duration else []
     return info.width, tuple(zip([None, *cuts], [*cuts, None], strict=True))
 
@@ -394,17 +397,28 @@ def _segment_paths(dst: Path, count: int) -> list[Path]:
     return [dst.parent / f".{dst.name}.{k + 1:03d}of{count:03d}{dst.suffix}" for k in range(count)]
 
 
+def _stale_segments(dst: Path, count: int) -> list[str]:
+    """The ranges of ``dst`` on the disk now, named as :func:`_segment_paths` names them, cut in other than ``count``."""
+    import re
+
+    pattern = re.compile(re.escape(f".{dst.name}.") + r"\d{3}of(\d{3})" + re.escape(dst.suffix))
+    try:
+        names = os.listdir(dst.parent)
+    except OSError:  # no folder yet
+        return []
+    return [str(dst.parent / n) for n in names if (m := pattern.fullmatch(n)) is not None and int(m[1]) != count]
+
+
 def _warp_segment(
     recipe: _Recipe, src: str, src_width: int, seg: str, start: float | None, end: float | None, make_folder: bool
 ) -> tuple[float, float, tuple[str, ...]]:
     """Warp one time range of a video ``src_width`` wide into ``seg`` (video only, from a key frame); ``(seconds, map seconds, warnings)``."""
-    from ..io.video import TEMPORARY_SUFFIX, warp_video
+    from ..io.video import warp_video
 
     tick = time.perf_counter()
     target = Path(seg)
     if make_folder:
         target.parent.mkdir(exist_ok=True)
-    remove_leftovers(target, TEMPORARY_SUFFIX)
     out_width = _output_width(recipe, src_width)
     before = time.perf_counter()
     inverse_map, warnings = _inverse_map(recipe, out_width, keep=True)
@@ -418,9 +432,8 @@ def _warp_segment(
 
 def _join_segments(recipe: _Recipe, src: str, segs: Sequence[str], dst: str, done: Sequence[tuple[Any, ...]]) -> tuple[float, float, tuple[str, ...]]:
     """Join a video's warped ranges into ``dst`` with the source's sound; the ranges' ``(seconds, map seconds, warnings)`` summed."""
-    from ..io.video import TEMPORARY_SUFFIX, join_video_segments
+    from ..io.video import join_video_segments
 
-    remove_leftovers(Path(dst), TEMPORARY_SUFFIX)
     report = join_video_segments(segs, dst, source=src, spherical=recipe.video.spherical)
     warnings = tuple(dict.fromkeys(w for d in done for w in d[2]))
     return report.seconds + sum(d[0] for d in done), sum(d[1] for d in done), warnings
@@ -428,11 +441,9 @@ def _join_segments(recipe: _Recipe, src: str, segs: Sequence[str], dst: str, don
 
 def _remove_segments(segs: Sequence[str]) -> None:
     """Remove a video's warped ranges and what killed attempts at them left."""
-    from ..io.video import TEMPORARY_SUFFIX
-
     for seg in segs:
         Path(seg).unlink(missing_ok=True)
-        remove_leftovers(Path(seg), TEMPORARY_SUFFIX)
+    remove_leftovers(*segs)
 
 
 def _dask_task(work: Callable[..., tuple[Any, ...]], *args: Any) -> tuple[Any, ...]:
@@ -458,8 +469,13 @@ def _describe(exc: BaseException, src: Path) -> str:
 # --- the batch ---------------------------------------------------------------------------------
 
 
-def _pairs(inputs: Sequence[str | os.PathLike[str]], outputs: Any) -> tuple[list[tuple[Path, Path]], bool]:
-    """Each input with its output, checked (names alone, nothing read); and whether outputs go into a folder of ours."""
+def _pairs(inputs: Sequence[str | os.PathLike[str]], outputs: Any, files: Sequence[tuple[str, Any]] = ()) -> tuple[list[tuple[Path, Path]], bool]:
+    """Each input with its output, checked (nothing read); and whether outputs go into a folder of ours.
+
+    ``files`` are the other files read, with what they are (``("the handles file", handles)``;
+    only paths count): no output may name one of them, an input or another output
+    (:func:`omniwidget._files.refuse_overwrites`).
+    """
     sources = [Path(p) for p in inputs]
     if isinstance(outputs, (str, os.PathLike)):
         folder = Path(outputs)
@@ -486,10 +502,8 @@ def _pairs(inputs: Sequence[str | os.PathLike[str]], outputs: Any) -> tuple[list
         if t.suffix.lower() not in allowed:
             what = "the output of a video" if video else "an output"
             raise ImageError(f"{t}: {what} must end in {', '.join(allowed)}")
-    read = {os.path.normpath(os.path.abspath(s)) for s in sources}
-    clash = next((t for t in targets if os.path.normpath(os.path.abspath(t)) in read), None)
-    if clash is not None:
-        raise ImageError(f"{clash}: the output would overwrite an input; choose another folder")
+    reads = [("the input", s) for s in sources] + [(what, Path(f)) for what, f in files if isinstance(f, (str, os.PathLike))]
+    refuse_overwrites(reads, [("the output", t) for t in targets])
     return list(zip(sources, targets, strict=True)), make_folder
 
 
@@ -603,7 +617,7 @@ def warp_files(
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers!r}")
     recipe = _recipe(handles, map, width, order, fit, VideoSettings(segment_seconds, codec, crf, preset, spherical))
-    pairs, make_folder = _pairs(inputs, outputs)
+    pairs, make_folder = _pairs(inputs, outputs, [("the handles file", handles), ("the map", map)])
     start = time.perf_counter()
     if client is None:
         threads = (os.cpu_count() or 1) + 1 if workers is None else int(workers)
@@ -635,7 +649,7 @@ def _in_process(
         raise AssertionError("unreachable")
 
     def video(src: Path, dst: Path) -> FileReport:
-        width, ranges = attempt(_plan_video, str(src), recipe.video.segment_seconds)
+        width, ranges = attempt(_plan_video, str(src), str(dst), recipe.video.segment_seconds)
         segs = [str(p) for p in _segment_paths(dst, len(ranges))]
         try:
             done = [attempt(_warp_segment, recipe, str(src), width, seg, a, b, make_folder) for seg, (a, b) in zip(segs, ranges, strict=True)]
@@ -658,11 +672,15 @@ def _in_process(
 
     found: dict[str, None] = {}
     files: list[FileReport] = []
-    with ThreadPoolExecutor(max(1, threads)) as pool:
+    remove_leftovers(*(dst for _, dst in pairs))  # each folder listed once, not once per file
+    pool = ThreadPoolExecutor(max(1, threads))
+    try:
         for done, report in enumerate(pool.map(one, pairs), start=1):
             files.append(report)
             if progress is not None:
                 progress(done, len(pairs))
+    finally:  # interrupted: the files not started are dropped, not warped while the caller waits
+        pool.shutdown(wait=True, cancel_futures=True)
     return files, tuple(found)
 
 
@@ -715,7 +733,7 @@ def _on_cluster(
         pending = as_completed()
         for i, (src, dst) in enumerate(pairs):
             if is_video_path(src):
-                pending.add(submit(f"{prefix}-{i}-plan", i, "plan", _plan_video, str(src), recipe.video.segment_seconds))
+                pending.add(submit(f"{prefix}-{i}-plan", i, "plan", _plan_video, str(src), str(dst), recipe.video.segment_seconds))
             else:
                 pending.add(submit(f"{prefix}-{i}", i, "file", _warp_file, shared, str(src), str(dst), make_folder))
         files: list[FileReport | None] = [None] * len(pairs)

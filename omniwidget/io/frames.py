@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._files import refuse_overwrites, remove_leftovers
 from ..errors import ImageError, OmniwidgetError
 from ..raster.warping import ORDERS, PAD, Order, pad_panorama, remap
 from ..sphere import coords
@@ -154,6 +155,20 @@ def warp_frames(
     FrameReport
         A frame that cannot be read, has another size or cannot be written is listed in
         ``failed`` with the reason; the others are still warped.
+
+    Raises
+    ------
+    ImageError
+        Before any work, if an output names an input or another output (the same path, a
+        symbolic or a hard link).
+    KeyboardInterrupt
+        Passed on once the frames being warped are written (the others are not started);
+        no temporary file is left.
+
+    Notes
+    -----
+    What killed runs left beside the outputs (hidden temporary files no live run holds) is
+    removed first, each folder listed once.
     """
     if len(inputs) != len(outputs):
         raise ValueError(f"{len(inputs)} inputs but {len(outputs)} outputs")
@@ -173,10 +188,13 @@ def warp_frames(
         return None
 
     pairs = [(Path(i), Path(o)) for i, o in zip(inputs, outputs, strict=True)]
+    refuse_overwrites([("the input", src) for src, _ in pairs], [("the output", dst) for _, dst in pairs])
+    remove_leftovers(*(dst for _, dst in pairs))
     written: list[Path] = []
     failed: list[tuple[Path, str]] = []
     start = time.perf_counter()
-    with ThreadPoolExecutor(workers) as pool:
+    pool = ThreadPoolExecutor(workers)
+    try:
         for done, ((src, dst), error) in enumerate(zip(pairs, pool.map(one, pairs), strict=True), start=1):
             if error is None:
                 written.append(dst)
@@ -184,4 +202,6 @@ def warp_frames(
                 failed.append((src, error))
             if progress is not None:
                 progress(done, len(pairs))
+    finally:  # interrupted: the frames not started are dropped, not warped while the process waits to end
+        pool.shutdown(wait=True, cancel_futures=True)
     return FrameReport(tuple(written), tuple(failed), time.perf_counter() - start)

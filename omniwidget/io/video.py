@@ -29,7 +29,6 @@ from __future__ import annotations
 import contextlib
 import os
 import queue
-import secrets
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -42,6 +41,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._files import commit, remove_leftovers, same_file, temporary_file
 from ..errors import VideoError
 from ..raster.warping import ORDERS, Order, pad_panorama, remap
 from .frames import map_coordinates
@@ -74,7 +74,8 @@ INPUT_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv", ".webm", ".avi", ".mts", ".m2t
 #: Containers written: MP4 and QuickTime (the spherical metadata's boxes are theirs).
 OUTPUT_SUFFIXES = (".mp4", ".m4v", ".mov")
 #: The end of the temporary file's name a video is written to before it is renamed
-#: (``.NAME.``, eight random hex digits, ``.part``; removed by ``omniwidget._files.remove_leftovers(NAME, TEMPORARY_SUFFIX)``).
+#: (``.NAME.``, eight random hex digits, ``.part``; locked while it is written, and removed by the next warp
+#: of ``NAME`` if a killed run left it: ``omniwidget._files.remove_leftovers``).
 TEMPORARY_SUFFIX = ".part"
 #: Pixel formats resampled plane by plane, and the format they are written in.
 PLANE_FORMATS = {"yuv420p": "yuv420p", "yuvj420p": "yuv420p", "yuv420p10le": "yuv420p10le"}
@@ -729,29 +730,22 @@ def _check_destination(source: Path, destination: Path) -> str:
         raise VideoError(f"{destination}: the output video must end in {', '.join(OUTPUT_SUFFIXES)}")
     if not destination.parent.is_dir():
         raise VideoError(f"{destination}: the folder {destination.parent} does not exist")
-    try:
-        same = destination.resolve() == source.resolve() or (destination.exists() and destination.samefile(source))
-    except OSError:
-        same = False
-    if same:
-        raise VideoError(f"{destination}: the output would overwrite the input; choose another file")
+    if same_file(destination, source):
+        raise VideoError(f"{destination}: the output would overwrite the input {source}; choose another file")
     return "mov" if destination.suffix.lower() == ".mov" else "mp4"
 
 
-def _temporary_file(destination: Path) -> Path:
-    """A new empty file next to ``destination``, hidden, named after it (``.out.mp4.1a2b3c4d.part``).
+def _temporary_file(destination: Path) -> tuple[int, Path]:
+    """A new empty file next to ``destination``, hidden, named after it (``.out.mp4.1a2b3c4d.part``), and its locked descriptor.
 
-    Made with the permissions a new file gets (``0o666`` less the umask), as the output will
-    have them after the rename (``tempfile.mkstemp`` would make it private).
+    What a killed run left beside ``destination`` is removed first. Made with the permissions
+    a new file gets (``0o666`` less the umask), as the output will have them after the rename.
     """
-    for _ in range(100):
-        path = destination.parent / f".{destination.name}.{secrets.token_hex(4)}{TEMPORARY_SUFFIX}"
-        try:
-            os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-        except FileExistsError:
-            continue
-        return path
-    raise VideoError(f"{destination}: cannot make a temporary file next to it")
+    remove_leftovers(destination)
+    try:
+        return temporary_file(destination, TEMPORARY_SUFFIX)
+    except OSError as exc:
+        raise VideoError(f"{destination}: cannot make a temporary file next to it ({exc.strerror or exc})") from None
 
 
 def _encoder_options(codec: str, crf: int | None, preset: str | None) -> dict[str, str]:
@@ -923,7 +917,7 @@ def warp_video(
         covered = min(float(span[1]), last) - max(float(span[0]), info.start)
         expected = max(0, round(covered * float(info.rate))) if info.rate and info.duration else None
 
-    tmp = _temporary_file(destination)
+    held, tmp = _temporary_file(destination)
     opencv = _opencv_single_threaded()
     opencv.__enter__()
     stop = threading.Event()
@@ -1068,7 +1062,7 @@ def warp_video(
         seconds = time.perf_counter() - tick
         if written is not None:
             write_spherical(tmp, written, in_place=True)
-        os.replace(tmp, destination)
+        commit(held, tmp, destination)
         finished = True
     finally:
         stop.set()
@@ -1088,6 +1082,7 @@ def warp_video(
         container.close()
         if not finished:
             tmp.unlink(missing_ok=True)
+        os.close(held)
     return VideoReport(
         source=source,
         destination=destination,
@@ -1151,8 +1146,9 @@ def join_video_segments(
     if not paths:
         raise VideoError(f"{destination}: no segments to join")
     muxer = _check_destination(source, destination)
-    if any(_same_path(p, destination) for p in paths):
-        raise VideoError(f"{destination}: the output would overwrite one of its segments")
+    clash = next((p for p in paths if same_file(p, destination)), None)
+    if clash is not None:
+        raise VideoError(f"{destination}: the output would overwrite its segment {clash}")
     info = probe_video(source)
     written = _spherical_written(info, spherical)
     tick = time.perf_counter()
@@ -1183,8 +1179,8 @@ def join_video_segments(
         raise
 
     opened = []
-    tmp = _temporary_file(destination)
     finished = False
+    held, tmp = _temporary_file(destination)
     try:
         for path in paths:
             try:
@@ -1248,7 +1244,7 @@ def join_video_segments(
             output.close()
         if written is not None:
             write_spherical(tmp, written, in_place=True)
-        os.replace(tmp, destination)
+        commit(held, tmp, destination)
         finished = True
     finally:
         for seg in opened:
@@ -1256,6 +1252,7 @@ def join_video_segments(
         container.close()
         if not finished:
             tmp.unlink(missing_ok=True)
+        os.close(held)
     return VideoReport(
         source=source,
         destination=destination,
@@ -1272,13 +1269,6 @@ def join_video_segments(
         spherical=written,
         warnings=(),
     )
-
-
-def _same_path(a: Path, b: Path) -> bool:
-    try:
-        return a.resolve() == b.resolve()
-    except OSError:
-        return False
 
 
 def _spherical_written(info: VideoInfo, spherical: Spherical | bool | None) -> Spherical | None:
