@@ -26,15 +26,33 @@ then, and its cache statistics stay whole), or with ``OMNIWIDGET_NATIVE=0``.
 
 The files live where numba keeps its cache for ``_numba_kernels.py``: in
 ``NUMBA_CACHE_DIR`` when set, else in the package's ``__pycache__`` folder when it can be
-written, else in the user's cache folder.
+written; else, or when that folder is not ours (below), in the user's cache folder.
+
+Machine code is run only when it is ours (issue 35, part 5), as ssh trusts its files: the
+file is a regular file (not a symbolic link) owned by the user or root and not writable by
+group or others, and so is its folder and every folder above it up to ``/`` (a folder above
+may be writable by others when it is sticky, as ``/tmp`` is; a group of the user alone, a
+user private group, counts as the user, as Debian's ssh has it). Each file ends with an
+HMAC-SHA256 of everything before it, keyed by a secret of the user's (32 random bytes in
+``omniwidget/native.key`` of the user's cache folder, mode 0600, made on first use), checked
+before a byte of it is loaded. A file that fails is not loaded: numba runs the kernel and
+the file is stored again, and why is logged once per process (a warning when a file was
+altered or is not ours, at debug level for a folder that is not ours, which stays so).
+Numba's own cache of the kernels is held to the same rule (:func:`secure_numba_cache`):
+numba unpickles its index files, which can run any code.
 """
 
 from __future__ import annotations
 
+import errno
 import hashlib
+import hmac
+import importlib
 import json
 import logging
 import os
+import secrets
+import stat
 import struct
 import sys
 import threading
@@ -45,17 +63,19 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ENV", "FORMAT", "Kernels", "enabled", "kernels", "stored_files"]
+__all__ = ["ENV", "FORMAT", "Kernels", "enabled", "kernels", "secure_numba_cache", "stored_files"]
 
 _log = logging.getLogger("omniwidget")
 
 #: Set to ``0`` to run the kernels through numba only (no stored native code read or written).
 ENV = "OMNIWIDGET_NATIVE"
 #: Version of the stored files and of the wrappers compiled into them; a change rebuilds them.
-FORMAT = 1
+FORMAT = 2
 _MODULE = "omniwidget._numba_kernels"
 _SOURCE = Path(__file__).with_name("_numba_kernels.py")
 _MAGIC = b"OWNATIVE"
+_TAG = 32  # the HMAC-SHA256 that ends a stored file
+_LARGEST = 1 << 26  # bytes: a stored kernel is tens of kilobytes; a larger file is not read
 _SCALARS = {"<f8": "c_double", "<f4": "c_float", "<i8": "c_int64", "<i4": "c_int32", "|b1": "c_bool"}
 _ARRAYS = frozenset({"<f8", "<f4", "<i8", "<i4", "|b1"})
 
@@ -171,13 +191,16 @@ def _stamp() -> dict[str, Any]:
     return stamp
 
 
+def _user_cache() -> Path:
+    """The user's own cache folder of omniwidget (``$XDG_CACHE_HOME/omniwidget``, else ``~/.cache/omniwidget``)."""
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "omniwidget"
+
+
 def _folders() -> list[Path]:
-    """Where the stored kernels may be, first choice first (numba's choice of cache folder)."""
+    """Where the stored kernels may be, first choice first: numba's choice of cache folder, then the user's cache."""
     env = os.environ.get("NUMBA_CACHE_DIR")
-    if env:
-        return [Path(env) / "omniwidget-native"]
-    user = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "omniwidget" / "native"
-    return [_SOURCE.parent / "__pycache__", user]
+    first = Path(env) / "omniwidget-native" if env else _SOURCE.parent / "__pycache__"
+    return [first, _user_cache() / "native"]
 
 
 def _file_name(name: str, key: tuple) -> str:
@@ -187,39 +210,237 @@ def _file_name(name: str, key: tuple) -> str:
     return f"_numba_kernels.{name}.{which}.native"
 
 
+# --- trust: only the user's own files ---------------------------------------------------------
+class _Refused(Exception):
+    """A file that is there but may not be trusted (the message says why)."""
+
+
+def _say(level: int, message: str) -> None:
+    """Log ``message`` once per process (a folder that is not ours is so for every kernel)."""
+    said = _state.setdefault("said", set())
+    if message not in said:
+        said.add(message)
+        _log.log(level, message)
+
+
+@cache
+def _private_group(gid: int) -> bool:
+    """Whether group ``gid`` is the user's private group: the user's primary group, with no one else in it."""
+    import grp
+    import pwd
+
+    uid = os.getuid()
+    try:
+        me, group = pwd.getpwuid(uid), grp.getgrgid(gid)
+    except KeyError:
+        return False
+    if me.pw_gid != gid or any(name != me.pw_name for name in group.gr_mem):
+        return False
+    return all(user.pw_uid == uid for user in pwd.getpwall() if user.pw_gid == gid)
+
+
+def _unsafe(st: os.stat_result, *, above: bool = False) -> str | None:
+    """Why someone other than the user or root could change what has status ``st``; None when no one can.
+
+    ``above``: a folder above the one read from, which may be writable by others when it is
+    sticky (others cannot rename or remove what is not theirs in it).
+    """
+    if st.st_uid not in (os.getuid(), 0):
+        return f"owned by another user (uid {st.st_uid})"
+    if above and st.st_mode & stat.S_ISVTX:
+        return None
+    if st.st_mode & stat.S_IWOTH:
+        return "writable by others"
+    if st.st_mode & stat.S_IWGRP and not _private_group(st.st_gid):
+        return "writable by its group"
+    return None
+
+
+def _distrust(folder: Path) -> str | None:
+    """Why the files in ``folder`` could be someone else's (it, or a folder above it up to ``/``, is not ours); None when they cannot."""
+    if not hasattr(os, "getuid"):  # no POSIX owners and modes (Windows): the checksum alone
+        return None
+    real = Path(os.path.realpath(folder))
+    for at in (real, *real.parents):
+        try:
+            why = _unsafe(os.stat(at), above=at != real)
+        except OSError as exc:
+            return f"{at} cannot be checked ({exc.strerror})"
+        if why is not None:
+            return f"{at} is {why}"
+    return None
+
+
+def _read_ours(path: Path, *, private: bool = False) -> bytes:
+    """The bytes of ``path`` when it is a regular file of ours, not a symbolic link; raises :class:`_Refused` otherwise.
+
+    ``private``: readable by the user alone too (a secret). A missing file raises
+    FileNotFoundError; a FIFO or device is refused without blocking.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise _Refused("it is a symbolic link") from None
+        raise
+    with os.fdopen(fd, "rb") as f:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise _Refused("it is not a regular file")
+        why = _unsafe(st) if hasattr(os, "getuid") else None
+        if why is None and private and st.st_mode & 0o077:
+            why = f"readable by others (mode {stat.S_IMODE(st.st_mode):o}, not 600)"
+        if why is not None:
+            raise _Refused(f"it is {why}")
+        if st.st_size > _LARGEST:
+            raise _Refused(f"it is larger than {_LARGEST} bytes")
+        return f.read(_LARGEST + 1)
+
+
+def _make_folder(folder: Path) -> None:
+    """Make ``folder`` and the folders above it that are missing, writable by the user alone whatever the umask."""
+    missing = []
+    while not folder.exists():
+        missing.append(folder)
+        folder = folder.parent
+    for at in reversed(missing):
+        try:
+            os.mkdir(at, 0o755)  # the umask only takes bits away
+        except FileExistsError:
+            pass
+
+
+def _write_new(path: Path, data: bytes, mode: int) -> None:
+    """Write a new file whole and sync it (no symbolic link followed, nothing replaced)."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), mode)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+    except BaseException:
+        path.unlink(missing_ok=True)
+        raise
+
+
+def _key() -> bytes | None:
+    """The user's secret that signs the stored kernels, made on first use; None when it cannot be kept where only the user reaches it."""
+    path = _user_cache() / "native.key"
+    known = _state.get("key")
+    if known is not None and known[0] == path:
+        return known[1]
+    try:
+        _make_folder(path.parent)
+        why = _distrust(path.parent)
+        if why is not None:
+            _say(logging.DEBUG, f"stored kernels not used: the folder of their key {why}")
+            return None
+        try:
+            key = _read_ours(path, private=True)
+            if len(key) != 32:
+                raise _Refused(f"it has {len(key)} bytes, not 32")
+            replace = False
+        except FileNotFoundError:
+            key, replace = b"", False
+        except _Refused as exc:
+            _say(logging.WARNING, f"the key of the stored kernels {path} is made anew: {exc}")
+            key, replace = b"", True
+        if not key:
+            key = secrets.token_bytes(32)
+            tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+            _write_new(tmp, key, 0o600)
+            try:
+                if replace:
+                    os.replace(tmp, path)
+                else:
+                    os.link(tmp, path)  # never over a key another process has just made
+            except FileExistsError:
+                key = _read_ours(path, private=True)
+            finally:
+                tmp.unlink(missing_ok=True)
+    except (OSError, _Refused) as exc:
+        _say(logging.DEBUG, f"stored kernels not used: no key in {path.parent} ({exc})")
+        return None
+    _state["key"] = (path, key)
+    return key
+
+
+def _signer(key: bytes) -> str:
+    """Which key signed a file (public: a digest of the key), to tell another key from an altered file."""
+    return _digest(b"omniwidget native signer" + key)[:16]
+
+
+# --- stored files ---------------------------------------------------------------------------------
+def _unpack(path: Path, data: bytes, want: dict) -> tuple[dict, bytes] | None:
+    """The header and machine code of a stored file that fits ``want`` and whose HMAC is right; None otherwise."""
+    start = len(_MAGIC) + 4
+    if not data.startswith(_MAGIC) or len(data) < start + _TAG:
+        return None
+    (size,) = struct.unpack_from("<I", data, len(_MAGIC))
+    try:
+        header = json.loads(data[start : start + size])
+    except (ValueError, RecursionError):
+        return None
+    if not isinstance(header, dict) or any(header.get(k) != v for k, v in want.items()):
+        return None  # built for another source, numba, CPU or format: rebuilt without a word, as before
+    key = _key()
+    if key is None:
+        return None
+    if header.get("signer") != _signer(key):
+        _say(logging.DEBUG, f"stored kernel {path} not used: signed with another key (compiled again)")
+        return None
+    if not hmac.compare_digest(hmac.new(key, data[:-_TAG], hashlib.sha256).digest(), data[-_TAG:]):
+        _say(logging.WARNING, f"stored kernel {path} not used: its checksum does not match, it was altered (compiled again)")
+        return None
+    return header, data[start + size : -_TAG]
+
+
 def _read(name: str, key: tuple) -> tuple[dict, bytes] | None:
-    """The stored kernel's header and machine code, when a file fits this process; else None."""
+    """The stored kernel's header and machine code, when a file of ours fits this process; else None."""
     want = {**_stamp(), "kernel": name, "key": repr(key)}
     file_name = _file_name(name, key)
     for folder in _folders():
+        path = folder / file_name
+        if not folder.is_dir():
+            continue
+        why = _distrust(folder)
+        if why is not None:
+            _say(logging.DEBUG, f"stored kernels in {folder} not used: {why}")
+            continue
         try:
-            data = (folder / file_name).read_bytes()
-        except OSError:
+            stored = _unpack(path, _read_ours(path), want)
+        except FileNotFoundError:
             continue
-        if not data.startswith(_MAGIC) or len(data) < len(_MAGIC) + 4:
+        except (OSError, _Refused) as exc:
+            _say(logging.WARNING, f"stored kernel {path} not used: {exc} (compiled again)")
             continue
-        (size,) = struct.unpack_from("<I", data, len(_MAGIC))
-        start = len(_MAGIC) + 4
-        try:
-            header = json.loads(data[start : start + size])
-        except ValueError:
-            continue
-        if all(header.get(k) == v for k, v in want.items()):
-            return header, data[start + size :]
+        if stored is not None:
+            return stored
     return None
 
 
 def _write(name: str, key: tuple, header: dict, code: bytes) -> Path | None:
-    """Store a kernel whole (temporary file and rename) in the first folder that can be written."""
-    payload = json.dumps(header, sort_keys=True).encode()
-    data = _MAGIC + struct.pack("<I", len(payload)) + payload + code
+    """Store a kernel whole and signed (temporary file and rename) in the first folder of ours that can be written."""
+    secret = _key()
+    if secret is None:
+        return None
+    payload = json.dumps({**header, "signer": _signer(secret)}, sort_keys=True).encode()
+    body = _MAGIC + struct.pack("<I", len(payload)) + payload + code
+    data = body + hmac.new(secret, body, hashlib.sha256).digest()
     for folder in _folders():
         try:
-            folder.mkdir(parents=True, exist_ok=True)
+            _make_folder(folder)
+            why = _distrust(folder)
+            if why is not None:
+                _say(logging.DEBUG, f"stored kernels in {folder} not used: {why}")
+                continue
             path = folder / _file_name(name, key)
             tmp = folder / f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp"
-            tmp.write_bytes(data)
-            os.replace(tmp, path)
+            _write_new(tmp, data, 0o644)
+            try:
+                os.replace(tmp, path)
+            finally:
+                tmp.unlink(missing_ok=True)
             return path
         except OSError:
             continue
@@ -358,6 +579,77 @@ def _build(name: str, dispatcher: Any, key: tuple) -> tuple[dict, bytes, Any]:
         "undefined": sorted(set(undefined)),
     }
     return header, code, compiled
+
+
+# --- numba's own cache ----------------------------------------------------------------------------
+def _distrust_numba_files(folder: Path) -> str | None:
+    """Why numba's files of the kernels in ``folder`` (its pickled index and data) could be someone else's; None when none can."""
+    try:
+        entries = list(os.scandir(folder))
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        return f"{folder} cannot be read ({exc.strerror})"
+    for entry in entries:
+        if entry.name.startswith("_numba_kernels.") and entry.name.endswith((".nbi", ".nbc")):
+            st = entry.stat(follow_symlinks=False)
+            why = "a symbolic link" if stat.S_ISLNK(st.st_mode) else _unsafe(st)
+            if why is not None:
+                return f"{entry.path} is {why}"
+    return None
+
+
+def _distrust_numba(dispatchers: list[Any]) -> str | None:
+    """Why the folders numba caches ``dispatchers`` in, or their files, could be someone else's; None when they cannot."""
+    folders: set[str] = {d._cache._cache_path for d in dispatchers if hasattr(d._cache, "_cache_path")}
+    for folder in sorted(folders):
+        why = _distrust(Path(folder)) or _distrust_numba_files(Path(folder))
+        if why is not None:
+            return why
+    return None
+
+
+def secure_numba_cache(namespace: dict[str, Any]) -> None:
+    """Keep numba's cache of the kernels in ``namespace`` in a folder of the user's own, as the stored kernels are.
+
+    Numba unpickles its index files (``.nbi``), and unpickling can run any code, so its cache
+    folder must be no one else's either. Called by :mod:`omniwidget._numba_kernels` once its
+    kernels are defined, before any of them runs (numba reads its cache at a kernel's first
+    call). When the folder numba chose (``NUMBA_CACHE_DIR``, the package's ``__pycache__`` or
+    numba's user cache), a folder above it or one of the kernels' files there is not ours (the
+    rule of :func:`_distrust`), the kernels are cached in ``omniwidget/numba`` of the user's
+    cache folder instead, or not at all when that is not ours either (numba compiles them in
+    every process); why is logged once at debug level.
+    """
+    dispatchers = [d for d in namespace.values() if hasattr(d, "enable_caching") and hasattr(d, "_cache")]
+    why = _distrust_numba(dispatchers)
+    if why is None:
+        return
+    from numba.core.caching import NullCache
+
+    config: Any = importlib.import_module("numba.core.config")  # its settings are set at import: in no stub
+
+    target = _user_cache() / "numba"
+    try:
+        _make_folder(target)
+        instead = _distrust(target)
+    except OSError as exc:
+        instead = f"{target} cannot be made ({exc.strerror})"
+    if instead is None:
+        before = config.CACHE_DIR
+        config.CACHE_DIR = str(target)  # read when a dispatcher's cache is made, so for these kernels alone
+        try:
+            for d in dispatchers:
+                d.enable_caching()
+        finally:
+            config.CACHE_DIR = before
+        instead = _distrust_numba(dispatchers)  # numba makes its subfolder there with the umask
+    if instead is not None:
+        for d in dispatchers:
+            d._cache = NullCache()
+        _say(logging.DEBUG, f"numba's cache of the kernels is not used: {why}; nor {target}: {instead} (compiled in every process)")
+    else:
+        _say(logging.DEBUG, f"numba's cache of the kernels is not used: {why}; it is kept in {target} instead")
 
 
 # --- the kernels -------------------------------------------------------------------------------
