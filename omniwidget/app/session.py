@@ -18,12 +18,14 @@ front end messages through ``on_message(content, buffers)``.
 from __future__ import annotations
 
 import atexit
+import errno
 import hashlib
 import json
 import os
 import re
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -32,13 +34,19 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from .._checks import whole_number
+from .._checks import require_regular_file, whole_number
+from .._files import atomic_write_bytes
 from ..document.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
-from ..errors import HandlesError, ImageError, OmniwidgetError, VideoError
+from ..errors import HandlesError, ImageError, NotRegularFileError, OmniwidgetError, VideoError
 from ..io.draw import display_rgb
 from ..io.images import check_format, check_panorama, read_image, write_image
 from ..sphere import coords
 from ._latest import Latest
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None  # type: ignore[assignment]
 
 if TYPE_CHECKING:
     from ..detect import Suggestion
@@ -168,6 +176,12 @@ def _autosave_name(image_path: Path | None, image: NDArray) -> str:
     return f"panorama-{_digest(header + _digest(pixels.data.cast('B')).encode())}{AUTOSAVE_SUFFIX}"
 
 
+def _writable_folder(image_path: Path) -> bool:
+    """Whether the editor writes next to ``image_path``: a folder it may write to, and not the package's (the bundled sample)."""
+    folder = image_path.resolve().parent
+    return not folder.is_relative_to(_PACKAGE) and os.access(folder, os.W_OK | os.X_OK)
+
+
 def _autosave_location(autosave: Any, image_path: Path | None, image: NDArray) -> Path | None:
     """Where the editor of this image autosaves its handles, or None when it does not (see :class:`omniwidget.Editor`)."""
     if autosave is None:
@@ -176,10 +190,8 @@ def _autosave_location(autosave: Any, image_path: Path | None, image: NDArray) -
     if isinstance(autosave, bool):
         if not autosave:
             return None
-        if image_path is not None:
-            folder = image_path.resolve().parent
-            if not folder.is_relative_to(_PACKAGE) and os.access(folder, os.W_OK | os.X_OK):
-                return image_path.with_name(image_path.name + AUTOSAVE_SUFFIX)
+        if image_path is not None and _writable_folder(image_path):
+            return image_path.with_name(image_path.name + AUTOSAVE_SUFFIX)
         return Path.cwd() / _autosave_name(image_path, image)
     if not isinstance(autosave, (str, os.PathLike)):
         raise TypeError(f"autosave must be True, False or a path (a file or a folder), got {type(autosave).__name__}")
@@ -211,6 +223,176 @@ def _read_autosave(path: Path) -> tuple[Handles | None, str]:
     except Exception as exc:  # noqa: BLE001 - whatever is wrong with the file, the editor opens
         problem = f"{path}: {type(exc).__name__}: {exc}"
     return None, problem
+
+
+# --- autosave: each file is one editor's ----------------------------------------------------------
+# An editor writes its autosave only while the file is its own: it holds an exclusive lock
+# (flock) on it, which the system lets go of when the editor's process ends however it ends
+# (no stale lock to clean up), and it writes over the file only if the file is still the one
+# it last read or wrote. Otherwise (another kernel's editor has the file, or wrote it since)
+# the editor autosaves to a file of its own, ``room.jpg.2.omniwidget-autosave.json``: no
+# editor ever writes over another's handles. Editors of one kernel are one person's: a newer
+# one (a cell run again) takes the file over, and the older keeps its handles apart.
+#: The editors of this process holding an autosave file, by its absolute path.
+_HOLDERS: weakref.WeakValueDictionary[str, EditingSession] = weakref.WeakValueDictionary()
+_HOLDERS_LOCK = threading.RLock()  # taken before any session's own lock
+_MAX_NUMBER = 10_000  # room.jpg.2.omniwidget-autosave.json to room.jpg.9999.omniwidget-autosave.json
+
+
+def _key(path: Path) -> str:
+    return str(path.resolve())
+
+
+def _split(name: str) -> tuple[str, str]:
+    """An autosave's name cut where an editor's number goes: ``("room.jpg", AUTOSAVE_SUFFIX)``, ``("mine", ".json")``."""
+    if name.endswith(AUTOSAVE_SUFFIX) and name != AUTOSAVE_SUFFIX:
+        return name[: -len(AUTOSAVE_SUFFIX)], AUTOSAVE_SUFFIX
+    stem, dot, ext = name.rpartition(".")
+    return (stem, dot + ext) if stem else (name, "")
+
+
+def _numbered(path: Path, n: int) -> Path:
+    """Editor ``n``'s own autosave beside ``path``: ``room.jpg.2.omniwidget-autosave.json``, ``mine.2.json``."""
+    head, tail = _split(path.name)
+    return path.with_name(f"{head}.{n}{tail}")
+
+
+def _autosave_files(path: Path) -> list[Path]:
+    """``path`` and the editors' own autosaves beside it, those that are there, by number."""
+    head, tail = _split(path.name)
+    pattern = re.compile(re.escape(head) + r"\.([2-9]|[1-9]\d+)" + re.escape(tail))
+    try:
+        names = os.listdir(path.parent)
+    except OSError:
+        names = []
+    numbered = sorted((int(m.group(1)), name) for name in names if (m := pattern.fullmatch(name)))
+    return [path] * os.path.lexists(path) + [path.with_name(name) for _, name in numbered]
+
+
+def _signature(path: Path) -> tuple[int, ...] | None:
+    """The file's device, inode, size and time of change (None when there is none): what tells one version from the next."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+def _not_regular(path: Path) -> str:
+    """Why the autosave ``path`` is never opened (a FIFO, a device, a socket: reading one may wait for ever), or ""."""
+    if path.is_dir():
+        return ""  # an unreadable autosave, kept aside at the first edit
+    try:
+        require_regular_file(path, "autosave")
+    except NotRegularFileError as exc:
+        return str(exc)
+    return ""
+
+
+class _Claim:
+    """An exclusive lock (``flock``) on an autosave file, held while its editor lives: other editors see the file is in use."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+
+    def close(self) -> None:
+        fd, self.fd = self.fd, -1
+        if fd >= 0:
+            os.close(fd)  # the lock goes with it
+
+    __del__ = close
+
+
+def _flock(fd: int, shared: bool = False) -> bool:
+    """Lock ``fd`` without waiting; False when another open file holds a lock that excludes it."""
+    if fcntl is None:  # pragma: no cover - Windows: no advisory locks; the check at write time remains
+        return True
+    try:
+        fcntl.flock(fd, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    except OSError:  # a file system without locks: the check at write time remains
+        pass
+    return True
+
+
+def _lock(path: Path) -> _Claim | None:
+    """Lock the regular file ``path`` for this editor (a few tries); None when another editor holds it."""
+    for _ in range(20):  # another editor looking (a shared lock held for a moment) is waited for
+        if not path.is_file():  # only a regular file is opened (a FIFO could block)
+            return None
+        try:
+            fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        except OSError:
+            return None
+        if _flock(fd):
+            return _Claim(fd)
+        os.close(fd)
+        time.sleep(0.005)
+    return None
+
+
+def _held_elsewhere(path: Path) -> bool:
+    """Whether an editor of another process holds ``path`` (only a regular file is opened, for a moment)."""
+    if fcntl is None or not path.is_file():
+        return False
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError:
+        return False
+    try:
+        return not _flock(fd, shared=True)
+    finally:
+        os.close(fd)
+
+
+def _in_use(path: Path) -> str:
+    """Where an editor holds ``path``: "this kernel", "another kernel or program", or ""."""
+    if _HOLDERS.get(_key(path)) is not None:
+        return "this kernel"
+    return "another kernel or program" if _held_elsewhere(path) else ""
+
+
+def _create_numbered(path: Path, data: bytes) -> tuple[Path, _Claim]:
+    """Write ``data`` to a new file beside ``path`` (the first free number) and lock it: an editor's own autosave."""
+    for n in range(2, _MAX_NUMBER):
+        candidate = _numbered(path, n)
+        try:
+            fd = os.open(candidate, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # never over anything, a FIFO included
+        except FileExistsError:
+            continue
+        try:
+            _flock(fd)  # a new file: no one else has it
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view) :]
+        except BaseException:
+            os.close(fd)
+            candidate.unlink(missing_ok=True)
+            raise
+        return candidate, _Claim(fd)
+    taken = f"{_numbered(path, 2).name} to {_numbered(path, _MAX_NUMBER - 1).name} are all taken"
+    raise FileExistsError(errno.EEXIST, taken, str(path.parent))
+
+
+def _mtime(path: Path) -> int:
+    try:
+        return os.stat(path).st_mtime_ns
+    except OSError:
+        return 0
+
+
+def _handles_location(image_path: Path | None) -> tuple[Path, bool]:
+    """Where Save writes the handles by default, and whether that name is the image's stem in the working folder only.
+
+    ``day1/room.handles.json`` for ``day1/room.jpg`` (next to it, as Save image writes); for an
+    array, the bundled sample or an image in a folder not to write to, ``<stem>.handles.json``
+    in the working folder, a name other panoramas may share.
+    """
+    if image_path is not None and _writable_folder(image_path):
+        return image_path.with_name(f"{image_path.stem}.handles.json"), False
+    stem = image_path.stem if image_path is not None else "panorama"
+    return Path(f"{stem}.handles.json"), True
 
 
 # --- save image --------------------------------------------------------------------------------
@@ -353,6 +535,12 @@ class EditingSession:
         live drag's basis, an image file to download).
 
     Nothing is computed until :meth:`start`, so that the widget can sync its traits first.
+
+    The autosave is this session's while it holds it (see :class:`omniwidget.Editor`'s
+    ``autosave``): :attr:`autosave_path` is where it writes, which becomes a file of its own
+    (``room.jpg.2.omniwidget-autosave.json``) when another editor has the panorama's file;
+    :attr:`other_autosaves` lists the panorama's autosaves it did not restore, and
+    :meth:`close` lets go of the file.
     """
 
     def __init__(
@@ -392,8 +580,10 @@ class EditingSession:
         preview_width = whole_number(preview_width, "preview_width", minimum=2, even=True)
         self._preview_width = min(preview_width, width)
         self._preview_source = self._downscaled(2 * self._preview_width)
-        stem = self._image_path.stem if self._image_path is not None else "panorama"
-        self.handles_path = Path(handles_path) if handles_path is not None else Path(f"{stem}.handles.json")
+        self._default_handles, shared_name = _handles_location(self._image_path)
+        self.handles_path = Path(handles_path) if handles_path is not None else self._default_handles
+        self._guard_handles = handles_path is None and shared_name  # Save replaces only a file of its own there
+        self._handles_written: tuple[int, ...] | None = None  # the handles file as this editor last saved or read it
         self._on_change = on_change or (lambda changes: None)
         self._on_message = on_message or (lambda content, buffers: None)
         self._lock = threading.Lock()
@@ -415,29 +605,26 @@ class EditingSession:
         self.folds = b""
         self.outputs: list = []
         self.autosave_path = _autosave_location(autosave, self._image_path, self._image)
+        self.other_autosaves: list[Path] = []  # this panorama's autosaves not restored, offered in the notice
         self._notice = ""  # status["notice"]
         self._autosave_bad = False  # the autosave file is unreadable: moved aside at the first edit
+        self._claim: _Claim | None = None  # the lock on autosave_path, from the first autosave on
+        self._seen: tuple[int, ...] | None = None  # autosave_path's signature when this editor last read or wrote it
+        self._restored: dict | None = None  # the document restored from it
+        self._home = self.autosave_path  # the panorama's first autosave name; an editor's own ones are numbered beside it
+        self._divert = ""  # why the next autosave goes to a file of this editor's own
+        self._own = ""  # the notice of an editor autosaving to a file of its own
         if isinstance(handles, (str, os.PathLike)) and not str(handles).lstrip().startswith("{"):
+            handles_file: Path | None = Path(handles)
             handles = load_handles(handles)
+        else:
+            handles_file = None
         doc = Handles() if handles is None else as_document(handles)
-        saved, problem = _read_autosave(self.autosave_path) if self.autosave_path is not None else (None, "")
-        if handles is None and saved is not None and len(saved):
-            self._undo.append(doc.to_dict())  # undo: start without them
-            doc = saved
-            self._notice = f"restored {_count(saved)} from {self.autosave_path} (undo to start without them)"
-        elif problem and self.autosave_path is not None:  # a problem comes only with an autosave path
-            self._autosave_bad = True
-            kept = f"the file is kept, as {_aside(self.autosave_path).name} from the first edit"
-            self._notice = (
-                f"could not restore the autosave: {problem}; opened with no handles ({kept})"
-                if handles is None
-                else f"the autosave is unreadable: {problem}; handles were given ({kept})"
-            )
-        elif saved is not None and len(saved) and saved != doc:
-            self._notice = (
-                f"the autosave {self.autosave_path} ({_count(saved)}) is not used: handles were given; the first edit replaces it"
-            )
+        if self.autosave_path is not None:
+            doc = self._open_autosave(self.autosave_path, doc, given=handles is not None)
         self.handles: dict = doc.to_dict()
+        if handles_file is not None:
+            self._note_handles_file(handles_file)
         self.history = {"undo": len(self._undo), "redo": len(self._redo)}
         self._video_job: threading.Thread | None = None
         self._video_cancel: threading.Event | None = None
@@ -574,27 +761,170 @@ class EditingSession:
         self._changed(doc)  # the preview starts first; the autosave is written meanwhile
         self._autosave(doc)
 
+    # --- autosave ----------------------------------------------------------------------------
+    def _open_autosave(self, home: Path, doc: Handles, given: bool) -> Handles:
+        """Read this panorama's autosaves at ``home`` and beside it; return the document to start from.
+
+        Without given handles the newest autosave with handles is restored, and the file it
+        came from is the one this editor goes on writing (while it is its own); the others are
+        offered in the notice and :attr:`other_autosaves`. A FIFO or device is never opened.
+        """
+        found = []  # (path, document or None, problem, whether it is no regular file)
+        for path in _autosave_files(home):
+            refused = _not_regular(path)
+            saved, problem = (None, refused) if refused else _read_autosave(path)
+            found.append((path, saved, problem, bool(refused)))
+        kept = sorted(((p, d) for p, d, _, _ in found if d is not None and len(d)), key=lambda f: _mtime(f[0]), reverse=True)
+        target, notes = home, []
+        if kept and not given:
+            target, saved = kept[0]
+            self._undo.append(doc.to_dict())  # undo: start without them
+            doc = saved
+            self._restored = doc.to_dict()
+            notes.append(f"restored {_count(saved)} from {target} (undo to start without them)")
+        where = _in_use(target)
+        for path, saved, problem, refused in found:
+            if path == home and saved is not None and len(saved) and given and saved != doc:
+                fate = "it is kept" if where == "another kernel or program" else "the first edit replaces it"
+                notes.append(f"the autosave {home} ({_count(saved)}) is not used: handles were given; {fate}")
+            elif path == target and problem and not refused:
+                self._autosave_bad = True
+                aside = f"the file is kept, as {_aside(path).name} from the first edit"
+                notes.append(
+                    f"the autosave is unreadable: {problem}; handles were given ({aside})"
+                    if given
+                    else f"could not restore the autosave: {problem}; opened with no handles ({aside})"
+                )
+            elif problem:
+                own = ", and this editor autosaves to a file of its own" if path == target else ""
+                notes.append(f"{problem}: it is left as it is{own}")
+        self.other_autosaves = [p for p, _ in kept if p != target and not (given and p == home)]
+        if self.other_autosaves:
+            names = []
+            for p, d in kept:
+                if p in self.other_autosaves:
+                    holder = _in_use(p)
+                    names.append(f"{p.name} ({_count(d)}{f', open in {holder}' if holder else ''})")
+            notes.append(f"other autosaves of this panorama are kept: {', '.join(names)}; load() takes one")
+        if where == "this kernel":
+            notes.append(
+                f"another editor of this panorama is open in this kernel: this one takes {target.name} over at its first edit, "
+                "the other keeps its handles apart"
+            )
+        elif where:
+            notes.append(
+                f"another editor (in {where}) has {target} open: this editor autosaves to a file of its own, so that neither erases the other's"
+            )
+        self._home, self.autosave_path, self._seen = home, target, _signature(target)
+        self._notice = "; ".join(notes)
+        return doc
+
     def _autosave(self, doc: Handles) -> None:
-        """Write the autosave file (whole or not at all); a failure is shown, never raised."""
-        path = self.autosave_path
-        if path is None:
+        """Write the autosave (whole or not at all) while it is this editor's, else a file of its own; a failure is shown, never raised."""
+        if self.autosave_path is None:
             return
-        notice = ""
         try:
-            if self._autosave_bad:
-                bad = _aside(path)
-                if path.exists() or path.is_symlink():
-                    os.replace(path, bad)
-                self._autosave_bad = False
-                notice = f"the unreadable autosave was kept as {bad}"
-            save_handles(doc, path)
+            with _HOLDERS_LOCK:
+                notice = self._write_autosave((doc.to_json() + "\n").encode())
         except Exception as exc:  # noqa: BLE001 - the edit stands; the person is told it is not on disk
-            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else _exception_text(exc)
-            notice = f"could not autosave to {path} ({reason}): these handles are not on disk; Save or Download them"
+            notice = self._autosave_failed(exc)
+        self._show_notice(notice)
+
+    def _autosave_failed(self, exc: BaseException) -> str:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else _exception_text(exc)
+        return f"could not autosave to {self.autosave_path} ({reason}): these handles are not on disk; Save or Download them"
+
+    def _show_notice(self, notice: str) -> None:
         if notice != self._notice:
             self._notice = notice
             with self._lock:
                 self._set_status(notice=notice)
+
+    def _write_autosave(self, data: bytes) -> str:
+        """Write ``data`` to the autosave if it is still this editor's, else to a new file of its own; return the notice."""
+        path = self.autosave_path
+        assert path is not None
+        why = self._divert or self._not_mine(path)
+        if why:
+            return self._write_own(data, why)
+        notice = self._own
+        if self._autosave_bad:
+            bad = _aside(path)
+            if os.path.lexists(path):
+                os.replace(path, bad)
+            self._autosave_bad = False
+            notice = f"the unreadable autosave was kept as {bad}"
+        atomic_write_bytes(path, data)
+        self._seen = _signature(path)
+        self._hold(path, _lock(path))
+        return notice
+
+    def _not_mine(self, path: Path) -> str:
+        """Why this editor must not write over ``path`` (another editor's file, or not a regular one), or "".
+
+        An older editor of this kernel holding it hands it over (:meth:`_hand_over`).
+        """
+        refused = _not_regular(path)
+        if refused:
+            return f"{refused}; it is left as it is"
+        holder = _HOLDERS.get(_key(path))
+        if holder is not None and holder is not self:
+            holder._hand_over(self)
+            return ""
+        if holder is None and _held_elsewhere(path):
+            return f"another editor (in another kernel or program) has {path} open"
+        if _signature(path) != self._seen:
+            return f"{path} was written by another editor since this one {'wrote' if holder is self else 'opened'} it"
+        return ""
+
+    def _write_own(self, data: bytes, why: str) -> str:
+        """Write ``data`` to a new file beside the autosave, this editor's own from now on; return the notice saying why."""
+        assert self._home is not None
+        path, claim = _create_numbered(self._home, data)
+        self._release()
+        self.autosave_path, self._seen, self._divert, self._autosave_bad = path, _signature(path), "", False
+        self._hold(path, claim)
+        self._own = f"{why}; this editor's handles are autosaved to {path} instead (no editor writes over another's)"
+        return self._own
+
+    def _hold(self, path: Path, claim: _Claim | None) -> None:
+        """Make ``path`` (locked by ``claim``, if it could be) this editor's autosave."""
+        old, self._claim = self._claim, claim
+        if old is not None:
+            old.close()
+        _HOLDERS[_key(path)] = self
+
+    def _release(self) -> None:
+        """Let go of the autosave file (the file stays): another editor may take it."""
+        with _HOLDERS_LOCK:
+            path = self.autosave_path
+            if path is not None and _HOLDERS.get(_key(path)) is self:
+                del _HOLDERS[_key(path)]
+            if self._claim is not None:
+                self._claim.close()
+                self._claim = None
+
+    def _hand_over(self, newer: EditingSession) -> None:
+        """Give the autosave to a newer editor of this panorama in this kernel (a cell run again); keep these handles apart.
+
+        Handles the newer editor did not start from are written at once to a file of this
+        editor's own; otherwise its next edit goes to one.
+        """
+        why = f"a newer editor of this panorama in this kernel took over {self.autosave_path}"
+        self._release()
+        try:
+            if len(self.document) and self.handles != newer._restored:
+                notice = self._write_own((self.document.to_json() + "\n").encode(), why)
+            else:
+                self._divert = why
+                notice = f"{why}; this editor's next edit is autosaved to a file of its own"
+        except Exception as exc:  # noqa: BLE001 - the newer editor goes on; this one says its handles are not on disk
+            notice = self._autosave_failed(exc)
+        self._show_notice(notice)
+
+    def close(self) -> None:
+        """Let go of the autosave file (it stays, for the next editor to restore); the handles stay in memory."""
+        self._release()
 
     def _changed(self, doc: Handles) -> None:
         """After every change of the handles: recompute the preview (and the control points' outputs)."""
@@ -1160,14 +1490,46 @@ class EditingSession:
 
     # --- files -------------------------------------------------------------------------------
     def save(self, path: str | os.PathLike[str] | None = None) -> Path:
-        """Write the handles file (whole or not at all); default :attr:`handles_path`."""
-        path = Path(path) if path is not None else self.handles_path
+        """Write the handles file (whole or not at all); return where.
+
+        Parameters
+        ----------
+        path : path-like, optional
+            Default :attr:`handles_path`: ``day1/room.handles.json`` next to ``day1/room.jpg``
+            when the editor was opened from a file in a folder it may write to; otherwise
+            (an array, the bundled sample, a folder not to write to) ``<stem>.handles.json``
+            in the working folder.
+
+        Raises
+        ------
+        FileExistsError
+            If ``path`` is not given, the default file is the working folder's (a name other
+            panoramas may share) and it is there already, not saved or loaded by this editor:
+            it may hold another panorama's handles, which Save never writes over. Pass a path,
+            or set :attr:`handles_path`.
+        """
+        if path is None:
+            path = self.handles_path
+            if self._guard_handles and path == self._default_handles and os.path.lexists(path) and _signature(path) != self._handles_written:
+                raise FileExistsError(
+                    f"{path.absolute()}: not saved: that file was not written by this editor and may hold another panorama's "
+                    f"handles (in the working folder it is named after the image's name only); save to another file "
+                    f"(save(path), or set handles_path)"
+                )
+        path = Path(path)
         save_handles(self.document, path)
+        self._note_handles_file(path)
         return path
 
     def load(self, path: str | os.PathLike[str]) -> None:
         """Replace the handles by those of a handles file (an undoable edit)."""
         self.edit(load_handles(path))
+        self._note_handles_file(Path(path))
+
+    def _note_handles_file(self, path: Path) -> None:
+        """Remember the default handles file as this editor saved or read it: Save may write over it."""
+        if _same_file(path, self._default_handles):
+            self._handles_written = _signature(self._default_handles)
 
     # --- the front end's commands -----------------------------------------------------------
     def _solve_drag(self, document: Any) -> None:

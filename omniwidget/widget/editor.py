@@ -102,8 +102,12 @@ class Editor(anywidget.AnyWidget):
     preview_width : int
         Width of the result computed after each edit (even).
     handles_path : path-like, optional
-        Where the Save button writes the handles; default ``<image name>.handles.json`` in
-        the working folder (the notebook's).
+        Where the Save button writes the handles; default ``<image stem>.handles.json`` next
+        to the image when it was opened from a file in a writable folder (``day1/room.jpg``
+        gives ``day1/room.handles.json``, as Save image writes next to it); otherwise (an
+        array, the bundled sample, a read-only folder) in the working folder, where Save never
+        writes over a file this editor did not save or load (it may be another panorama's):
+        it says so and writes nothing.
     height : int
         Height of the drawing area in CSS pixels.
     autosave : bool or path-like, optional
@@ -121,6 +125,16 @@ class Editor(anywidget.AnyWidget):
         unreadable autosave never stops the editor opening: it opens with no handles, the
         status says what is wrong with the file, and the file is kept, renamed to
         ``<name>.bad`` at the first edit.
+
+        An autosave is one editor's: it holds a lock on the file while it lives, and writes
+        over it only while the file is the one it last wrote or read. An editor that finds it
+        open in another kernel (or written there since it opened) autosaves to a file of its
+        own beside it, ``<name>.2.omniwidget-autosave.json``, and says so in the status; a
+        newer editor of the same panorama in the same kernel (a cell run again) takes the file
+        over, and the older one keeps its handles in a file of its own. Opening restores the
+        newest of these files and names the others (:attr:`other_autosaves`). A FIFO or a
+        device at the autosave path is never opened: the status says so, and the editor
+        autosaves to a file of its own.
 
     quality : bool
         Measure each result's quality figures after it is shown (straightness, fold-over,
@@ -181,6 +195,8 @@ class Editor(anywidget.AnyWidget):
         "done" or "error") and ``message``.
     autosave_path : Path or None
         The autosave file (see ``autosave``), None when autosave is off.
+    other_autosaves : list of Path
+        This panorama's other autosaves, not restored (other editors', or older): ``load`` one.
     last_error : BaseException or None
         The exception of the last computation that failed, with its traceback, for a closer
         look (the widget shows its type and message).
@@ -318,6 +334,18 @@ class Editor(anywidget.AnyWidget):
     def autosave_path(self) -> Path | None:
         """The autosave file, None when autosave is off."""
         return self._session.autosave_path
+
+    @property
+    def other_autosaves(self) -> list[Path]:
+        """The panorama's other autosaves, not restored when the editor opened (other editors', or older)."""
+        return list(self._session.other_autosaves)
+
+    def close(self) -> None:
+        """Close the widget and let go of the autosave file (it stays, for the next editor to restore)."""
+        session = getattr(self, "_session", None)
+        if session is not None:
+            session.close()
+        super().close()
 
     @property
     def last_error(self) -> BaseException | None:
