@@ -13,11 +13,13 @@ told from real data (the format has no checksum); OpenCV decodes such a file as 
 from __future__ import annotations
 
 import io
+import math
 import os
 import struct
 import zlib
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import BinaryIO, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,12 +30,21 @@ from ..errors import ImageError, NotRegularFileError
 
 __all__ = [
     "FITS",
+    "MEMORY_VARIABLE",
     "SUPPORTED_DTYPES",
+    "WARP_BYTES_PER_PIXEL",
+    "WARP_INPUT_COPIES",
+    "ImageHeader",
     "atomic_write_bytes",
+    "available_memory",
+    "check_fits",
     "check_format",
     "check_panorama",
     "check_writable",
+    "decode_bytes",
     "encode_image",
+    "image_header",
+    "memory_needed",
     "read_image",
     "read_panorama",
     "to_equirectangular",
@@ -133,7 +144,22 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _NPY_MAGIC = b"\x93NUMPY"
 
 
-def _tiff_ifd0(blob: bytes | memoryview) -> dict[int, tuple[int, ...]] | None:
+class _FileBytes:
+    """A file's bytes read on demand: ``len`` and slices, as :func:`_tiff_ifd0` reads a blob, without reading it all."""
+
+    def __init__(self, fh: BinaryIO, size: int) -> None:
+        self.fh, self.size = fh, size
+
+    def __len__(self) -> int:
+        return self.size
+
+    def __getitem__(self, where: slice) -> bytes:
+        start, stop, _ = where.indices(self.size)
+        self.fh.seek(start)
+        return self.fh.read(max(0, stop - start))
+
+
+def _tiff_ifd0(blob: bytes | memoryview | _FileBytes) -> dict[int, tuple[int, ...]] | None:
     """The numeric entries of a TIFF structure's first directory (a TIFF file or an EXIF block).
 
     Returns ``{tag: values}`` for entries of type BYTE, SHORT or LONG, or None if ``blob`` does
@@ -332,7 +358,12 @@ def _looks_like_text(head: bytes) -> bool:
     return all(c.isprintable() or c in "\r\n\t" for c in text)
 
 
-def _read_npy(path: Path, data: bytes) -> NDArray:
+def _read_npy(path: Path, data: bytes, header: ImageHeader | None) -> NDArray:
+    if header is not None and header.offset + header.nbytes > len(data):  # before np.load allocates what the header says
+        raise ImageError(
+            f"{path}: the file looks truncated: its header declares {header.describe()}, "
+            f"it holds {len(data) - header.offset} bytes after the header; was it copied or downloaded whole?"
+        )
     try:
         array = np.load(io.BytesIO(data), allow_pickle=False)
     except (OSError, ValueError) as exc:
@@ -342,7 +373,469 @@ def _read_npy(path: Path, data: bytes) -> NDArray:
     return array.astype(array.dtype.newbyteorder("="), copy=False)
 
 
-def read_image(path: str | os.PathLike[str], *, orientation: bool = True) -> NDArray:
+# --- memory: what reading a file, and warping it, will take ------------------------------------
+
+#: Bytes a warp holds per output pixel besides the output image itself: the pixel
+#: coordinates, the blend's and the fold check's working arrays (measured with
+#: bench/bench_limits.py pixels, the command line's peak; bench/RESULTS.md, "Limits (issue 35)").
+WARP_BYTES_PER_PIXEL = 80
+#: Copies of the input image a warp holds at its peak: the image, and the padded copy being made
+#: (:func:`omniwidget.raster.warping.pad_panorama` concatenates rows, then columns).
+WARP_INPUT_COPIES = 3
+#: The environment variable that says how much memory :func:`check_fits` may count on (bytes,
+#: or a number with K, M, G or T: ``8G``), instead of what the system says is available.
+MEMORY_VARIABLE = "OMNIWIDGET_MEMORY"
+_UNITS = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
+#: Chunks of a PNG looked at for a tRNS chunk before its image data (more: taken to have one).
+_PNG_CHUNKS = 1024
+#: JPEG segments looked at for the frame header (more: the size is unknown).
+_JPEG_SEGMENTS = 4096
+#: The reductions libjpeg can decode a JPEG at (its DCT scaling), in the order tried.
+_REDUCTIONS = {
+    2: ("IMREAD_REDUCED_COLOR_2", "IMREAD_REDUCED_GRAYSCALE_2"),
+    4: ("IMREAD_REDUCED_COLOR_4", "IMREAD_REDUCED_GRAYSCALE_4"),
+    8: ("IMREAD_REDUCED_COLOR_8", "IMREAD_REDUCED_GRAYSCALE_8"),
+}
+
+
+@dataclass(frozen=True)
+class ImageHeader:
+    """What an image file's header says of the array :func:`read_image` returns, read without decoding.
+
+    Attributes
+    ----------
+    format : str
+        ``"PNG"``, ``"JPEG"``, ``"TIFF"``, ``"WebP"``, ``"BMP"`` or ``"npy"``.
+    shape : tuple of int
+        ``(H, W)`` or ``(H, W, C)`` as stored, before the EXIF orientation turns it; for a
+        ``.npy`` file the array's shape, whatever it is.
+    dtype : numpy.dtype
+        The sample type, as :func:`read_image` returns it.
+    file_bytes : int
+        The file's size.
+    offset : int
+        Where the pixels start in a ``.npy`` file (after its header); 0 for the others.
+    """
+
+    format: str
+    shape: tuple[int, ...]
+    dtype: np.dtype
+    file_bytes: int
+    offset: int = 0
+
+    @property
+    def width(self) -> int:
+        """``W``, pixels."""
+        return self.shape[1] if len(self.shape) > 1 else 1
+
+    @property
+    def height(self) -> int:
+        """``H``, pixels."""
+        return self.shape[0] if self.shape else 1
+
+    @property
+    def bytes_per_pixel(self) -> int:
+        """Channels times the sample's bytes: 3 for RGB uint8, 16 for RGBA float32, 8 for a float32 map."""
+        return math.prod(self.shape[2:]) * self.dtype.itemsize
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the decoded array: ``H * W * bytes_per_pixel``."""
+        return math.prod(self.shape) * self.dtype.itemsize
+
+    def describe(self) -> str:
+        """E.g. ``"a 46000 x 23000 RGB uint8 image (3.17 GB decoded)"``, or ``"an array of shape (H, W, 2) float32 (...)"``."""
+        names = {1: "gray", 2: "gray+alpha", 3: "RGB", 4: "RGBA"}
+        channels = math.prod(self.shape[2:])
+        if self.format == "npy":
+            kind = f"an array of shape {self.shape} {self.dtype}"
+        else:
+            kind = f"a {self.width} x {self.height} {names.get(channels, f'{channels}-channel')} {self.dtype} image"
+        return f"{kind} ({_gigabytes(self.nbytes)} decoded)"
+
+
+def _gigabytes(n: float) -> str:
+    return f"{n / 1e9:.3g} GB" if n >= 1e8 else f"{n / 1e6:.3g} MB"
+
+
+def _jpeg_header(blob: _FileBytes) -> tuple[int, ...] | None:
+    """``(H, W)`` or ``(H, W, 3)`` and the sample bits from a JPEG's frame header, walking its segments."""
+    i = 2
+    for _ in range(_JPEG_SEGMENTS):
+        seg = blob[i : i + 10]
+        if len(seg) < 4 or seg[0] != 0xFF:
+            return None
+        code = seg[1]
+        if code == 0xFF:  # fill byte
+            i += 1
+        elif code == 0x01 or 0xD0 <= code <= 0xD8:
+            i += 2
+        elif code in (0xD9, 0xDA):  # the end, or a scan, before any frame header
+            return None
+        elif 0xC0 <= code <= 0xCF and code not in (0xC4, 0xC8, 0xCC):
+            if len(seg) < 10:
+                return None
+            height, width = struct.unpack(">HH", seg[5:9])
+            shape = (height, width) if seg[9] == 1 else (height, width, 3)  # OpenCV decodes CMYK as RGB too
+            return (*shape, seg[4]) if height and width else None  # height 0: given by a DNL marker after the scan
+        else:
+            i += 2 + int.from_bytes(seg[2:4], "big")
+    return None
+
+
+def _png_header(blob: _FileBytes) -> tuple[tuple[int, ...], np.dtype] | None:
+    head = blob[8:33]
+    if len(head) < 25 or head[4:8] != b"IHDR":
+        return None
+    width, height, depth, colour = struct.unpack(">IIBB", head[8:18])
+    transparent, i = False, 8
+    for _ in range(_PNG_CHUNKS):  # a tRNS chunk (before the image data) adds an alpha channel
+        chunk = blob[i : i + 8]
+        if len(chunk) < 8 or chunk[4:8] in (b"IDAT", b"IEND"):
+            break
+        if chunk[4:8] == b"tRNS":
+            transparent = True
+            break
+        i += 12 + int.from_bytes(chunk[:4], "big")
+    else:
+        transparent = True
+    channels = {0: 1, 2: 4 if transparent else 3, 3: 4 if transparent else 3, 4: 4, 6: 4}.get(colour)
+    if channels is None:
+        return None
+    shape = (height, width) if channels == 1 else (height, width, channels)
+    return shape, np.dtype(np.uint16 if depth == 16 else np.uint8)
+
+
+def _tiff_header(blob: _FileBytes) -> tuple[tuple[int, ...], np.dtype] | None:
+    entries = _tiff_ifd0(blob)
+    if not entries or not entries.get(256) or not entries.get(257):
+        return None
+    width, height = entries[256][0], entries[257][0]
+    bits = (entries.get(258) or (1,))[0]
+    samples = (entries.get(277) or (1,))[0]
+    kind = (entries.get(339) or (1,))[0]
+    size = 8 if bits > 32 else 4 if bits > 16 else 2 if bits > 8 else 1
+    dtype = np.dtype(f"f{max(size, 4)}" if kind == 3 else f"i{size}" if kind == 2 else f"u{size}")
+    palette = (entries.get(262) or (1,))[0] == 3
+    channels = 3 if palette else 1 if samples <= 2 else min(samples, 4)  # OpenCV reads gray+alpha as gray
+    return ((height, width) if channels == 1 else (height, width, channels)), dtype
+
+
+def _webp_header(blob: _FileBytes) -> tuple[int, ...] | None:
+    head = blob[:30]
+    if len(head) < 30:
+        return None
+    if head[12:16] == b"VP8 " and head[23:26] == b"\x9d\x01\x2a":
+        width, height = (int.from_bytes(head[26:28], "little") & 0x3FFF), (int.from_bytes(head[28:30], "little") & 0x3FFF)
+        alpha = False
+    elif head[12:16] == b"VP8L" and head[20] == 0x2F:
+        bits = int.from_bytes(head[21:25], "little")
+        width, height, alpha = (bits & 0x3FFF) + 1, ((bits >> 14) & 0x3FFF) + 1, bool(bits >> 28 & 1)
+    elif head[12:16] == b"VP8X":
+        alpha = bool(head[20] & 0x10)
+        width, height = int.from_bytes(head[24:27], "little") + 1, int.from_bytes(head[27:30], "little") + 1
+    else:
+        return None
+    return (height, width, 4 if alpha else 3)
+
+
+def _bmp_header(blob: _FileBytes) -> tuple[int, ...] | None:
+    head = blob[:30]
+    if len(head) < 26:
+        return None
+    if int.from_bytes(head[14:18], "little") == 12:  # OS/2's BITMAPCOREHEADER
+        width, height, bits = struct.unpack("<hhxxH", head[18:26])
+    elif len(head) >= 30:
+        width, height, bits = struct.unpack("<iixxH", head[18:30])
+    else:
+        return None
+    return (abs(height), abs(width), 4 if bits == 32 else 3)  # an upper bound: a gray palette decodes to one channel
+
+
+def _npy_header(fh: BinaryIO) -> tuple[tuple[int, ...], np.dtype, int] | None:
+    from numpy.lib import format as npy
+
+    fh.seek(0)
+    try:
+        version = npy.read_magic(fh)
+        if version == (1, 0):
+            shape, _, dtype = npy.read_array_header_1_0(fh)
+        elif version == (2, 0):
+            shape, _, dtype = npy.read_array_header_2_0(fh)
+        else:
+            return None
+    except (ValueError, OSError, SyntaxError):
+        return None  # np.load says what is wrong
+    return tuple(int(n) for n in shape), np.dtype(dtype).newbyteorder("="), fh.tell()
+
+
+def image_header(path: str | os.PathLike[str]) -> ImageHeader | None:
+    """What :func:`read_image` would return for ``path`` (shape, sample type, bytes), from the file's header only.
+
+    Reads a few bytes at the start of the file (and, for TIFF, its first directory; for
+    JPEG, the segment headers up to the frame header; for PNG, the chunk headers up to the
+    image data); never the pixels.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    ImageHeader or None
+        None when the format is none of PNG, JPEG, TIFF, WebP, BMP and ``.npy`` or the header
+        does not say (the file is then decoded as it is, within OpenCV's own limit).
+        ``shape`` and ``dtype`` are exactly what :func:`read_image` returns (before the EXIF
+        orientation) for PNG, JPEG, WebP, ``.npy`` and common TIFFs; an upper bound for BMP
+        (32-bit pixels count four channels, a gray palette three).
+
+    Raises
+    ------
+    ImageError
+        If the file cannot be opened, or is a FIFO or a device.
+    """
+    path = Path(path)
+    try:
+        require_regular_file(path, "image")
+        with path.open("rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            blob = _FileBytes(fh, size)
+            kind = _format(blob[:64])
+            found: tuple[tuple[int, ...], np.dtype] | None = None
+            offset = 0
+            if kind == "npy" and (npy := _npy_header(fh)) is not None:
+                found, offset = npy[:2], npy[2]
+            elif kind == "JPEG" and (shape := _jpeg_header(blob)) is not None:
+                found = shape[:-1], np.dtype(np.uint16 if shape[-1] > 8 else np.uint8)
+            elif kind == "PNG":
+                found = _png_header(blob)
+            elif kind == "TIFF":
+                found = _tiff_header(blob)
+            elif kind in ("WebP", "BMP") and (shape := (_webp_header if kind == "WebP" else _bmp_header)(blob)) is not None:
+                found = shape, np.dtype(np.uint8)
+    except NotRegularFileError as exc:
+        raise ImageError(str(exc)) from None
+    except OSError as exc:
+        raise ImageError(f"{path}: cannot read the image ({exc.strerror or exc})") from None
+    if kind is None or found is None:
+        return None
+    return ImageHeader(kind, found[0], found[1], size, offset)
+
+
+def decode_bytes(path: str | os.PathLike[str]) -> int:
+    """Bytes of the array :func:`read_image` returns for ``path``, told from the file's header before decoding.
+
+    ``H * W * C * itemsize``: a pixel is ``C`` channels (1 gray, 3 RGB, 4 RGBA: a PNG with
+    transparency and an RGBA WebP or TIFF have 4) of 1 byte (uint8: JPEG, PNG, WebP, BMP),
+    2 (uint16: 16-bit PNG and TIFF), 4 (float32 TIFF) or 8 (float64 TIFF); a ``.npy`` file
+    holds ``prod(shape) * itemsize``. A 46,000 x 23,000 RGB PNG is 3.17 GB however small its
+    file. Reading takes more at its peak (:func:`memory_needed`).
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ImageError
+        If the file cannot be read, or its format's header does not say (:func:`image_header`).
+    """
+    header = image_header(path)
+    if header is None:
+        raise ImageError(f"{path}: the size of the image cannot be told before decoding it (PNG, JPEG, TIFF, WebP, BMP and .npy can)")
+    return header.nbytes
+
+
+def _warp_output(header: ImageHeader, width: int | None) -> tuple[int, int]:
+    """The output width of a warp to ``width`` (default: the panorama's, its longer side) and its pixels."""
+    w = width if width is not None else max(header.width, header.height)
+    return w, w * max(w // 2, 1)
+
+
+def _needed(header: ImageHeader, *, warp: bool, width: int | None, reduce: int = 1) -> int:
+    """Peak bytes of reading the image (decoded at ``1 / reduce`` of its size) and, with ``warp``, of warping it."""
+    image = header.nbytes // (reduce * reduce)
+    reading = header.file_bytes + 2 * image  # the file, the decoded pixels and their copy in RGB order (or turned)
+    if not warp:
+        return reading
+    _, pixels = _warp_output(header, width)
+    return max(reading, WARP_INPUT_COPIES * image + pixels * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel))
+
+
+def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: int | None = None) -> int:
+    """Peak bytes of reading an image file (and of warping it), estimated from its header.
+
+    Reading holds the file's bytes, the decoded pixels and one copy of them (OpenCV's BGR
+    turned into RGB, or the EXIF orientation applied): ``file + 2 * decode_bytes(path)``. A
+    warp holds :data:`WARP_INPUT_COPIES` copies of the input (it, and its padded copy being
+    made) and per output pixel :data:`WARP_BYTES_PER_PIXEL` bytes of working arrays besides
+    the output pixel itself: ``3 * decode_bytes + W_out * W_out / 2 * (80 + bytes_per_pixel)``.
+    The figures were measured on the command line's peak (``ru_maxrss``, bench/RESULTS.md,
+    "Limits (issue 35)"); the Python process itself (about 150 MB) is not counted.
+
+    Parameters
+    ----------
+    path : path-like
+    warp : bool
+        Count a warp of the image too.
+    width : int, optional
+        The warp's output width; default: the panorama's own (its longer side).
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ImageError
+        As :func:`decode_bytes`.
+    """
+    header = image_header(path)
+    if header is None:
+        raise ImageError(f"{path}: the size of the image cannot be told before decoding it (PNG, JPEG, TIFF, WebP, BMP and .npy can)")
+    return _needed(header, warp=warp, width=width)
+
+
+def _meminfo(name: str) -> int | None:
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith(name + ":"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def _cgroup_available() -> int | None:
+    """What the process's cgroup (v2) still allows: ``memory.max`` less what is used, page cache counted as free."""
+    try:
+        with open("/proc/self/cgroup") as fh:
+            own = next((line.split(":", 2)[2].strip() for line in fh if line.startswith("0::")), None)
+        if own is None:
+            return None
+        folder = Path("/sys/fs/cgroup") / own.lstrip("/")
+        limit = (folder / "memory.max").read_text().strip()
+        if limit == "max":
+            return None
+        used = int((folder / "memory.current").read_text())
+        stat = dict(line.split() for line in (folder / "memory.stat").read_text().splitlines() if line.count(" ") == 1)
+        return int(limit) - used + int(stat.get("inactive_file", 0))
+    except (OSError, ValueError, StopIteration):
+        return None
+
+
+def _rlimit_available() -> int | None:
+    """What ``ulimit -v`` (address space) and ``ulimit -d`` (data) leave to this process."""
+    try:
+        import resource
+
+        with open("/proc/self/status") as fh:
+            status = {k: v for k, _, v in (line.partition(":") for line in fh)}
+    except (ImportError, OSError):
+        return None
+    found = []
+    for limit, field in ((resource.RLIMIT_AS, "VmSize"), (resource.RLIMIT_DATA, "VmData")):
+        soft = resource.getrlimit(limit)[0]
+        if soft != resource.RLIM_INFINITY and field in status:
+            found.append(soft - int(status[field].split()[0]) * 1024)
+    return min(found) if found else None
+
+
+def available_memory() -> int | None:
+    """Bytes this process may still allocate: the least of what the system, its cgroup and its rlimits leave.
+
+    ``MemAvailable`` of ``/proc/meminfo`` (free memory and reclaimable cache, no swap), the
+    cgroup v2 ``memory.max`` less ``memory.current`` (with its inactive page cache counted
+    as free), and the soft ``RLIMIT_AS`` (``ulimit -v``) and ``RLIMIT_DATA`` (``ulimit -d``)
+    less what the process already maps. :data:`MEMORY_VARIABLE` (``OMNIWIDGET_MEMORY=8G``),
+    when set, is taken instead.
+
+    Returns
+    -------
+    int or None
+        None where none of these can be read (not Linux, and no ``OMNIWIDGET_MEMORY``).
+
+    Raises
+    ------
+    ImageError
+        If ``OMNIWIDGET_MEMORY`` is not a number of bytes, with an optional K, M, G or T.
+    """
+    given = os.environ.get(MEMORY_VARIABLE, "").strip().upper().removesuffix("B")
+    if given:
+        number, unit = (given[:-1], given[-1]) if given[-1] in _UNITS else (given, "")
+        try:
+            return int(float(number) * _UNITS[unit])
+        except ValueError:
+            raise ImageError(
+                f"{MEMORY_VARIABLE}={os.environ[MEMORY_VARIABLE]!r}: expected bytes, or a number with K, M, G or T (8G)"
+            ) from None
+    found = [n for n in (_meminfo("MemAvailable"), _cgroup_available(), _rlimit_available()) if n is not None]
+    if not found and hasattr(os, "sysconf"):
+        try:
+            found.append(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        except (ValueError, OSError):
+            pass
+    return max(0, min(found)) if found else None
+
+
+def _refusal(path: Path, header: ImageHeader, need: int, have: int, *, warp: bool, width: int | None) -> ImageError:
+    what = "reading it"
+    how = f"free memory, or set {MEMORY_VARIABLE} to the bytes it may count on"
+    if warp:
+        w, _ = _warp_output(header, width)
+        what = f"reading it and a warp {w} pixels wide"
+        how = (
+            f"try a smaller width (--width; a warp takes about {WARP_BYTES_PER_PIXEL + header.bytes_per_pixel} bytes per output pixel), "
+            + how
+        )
+    return ImageError(
+        f"{path}: {header.describe()}; {what} needs about {_gigabytes(need)} and {_gigabytes(have)} is available: {how}"
+    )
+
+
+def check_fits(path: str | os.PathLike[str], *, warp: bool = False, width: int | None = None) -> ImageHeader | None:
+    """Refuse, before decoding, an image whose reading (and warp) would not fit in the memory available.
+
+    Parameters
+    ----------
+    path : path-like
+    warp : bool
+        Count a warp of it too (:func:`memory_needed`).
+    width : int, optional
+        The warp's output width; default: the panorama's own.
+
+    Returns
+    -------
+    ImageHeader or None
+        The header, or None when the format does not say its size (nothing is checked then).
+
+    Raises
+    ------
+    ImageError
+        Naming the file, its size, what it needs and what is available, and how to go on:
+        a smaller width, more memory, or ``OMNIWIDGET_MEMORY`` to count on more.
+
+    Examples
+    --------
+    >>> import omniwidget as ow
+    >>> check_fits(ow.sample_path(), warp=True).shape
+    (512, 1024, 3)
+    """
+    header = image_header(path)
+    if header is None:
+        return None
+    need, have = _needed(header, warp=warp, width=width), available_memory()
+    if have is not None and need > have:
+        raise _refusal(Path(path), header, need, have, warp=warp, width=width)
+    return header
+
+
+def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width: int | None = None) -> NDArray:
     """Read an image file as an array in RGB(A) order, keeping its sample depth.
 
     Parameters
@@ -353,6 +846,12 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True) -> NDA
     orientation : bool
         Turn the pixels as the file's EXIF orientation says (JPEG, PNG and WebP; OpenCV
         does it for TIFF), so that the array is the picture viewers show.
+    width : int, optional
+        The width the image is wanted at (a warp's output width, say). A JPEG too large to
+        decode in the memory available (:func:`check_fits`) but at least twice as wide as
+        this is then decoded at 1/2, 1/4 or 1/8 of its size (libjpeg's DCT scaling, the
+        least reduction that fits and stays at least ``width`` wide) instead of refused.
+        An image that fits is read whole whatever ``width`` says.
 
     Returns
     -------
@@ -368,15 +867,31 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True) -> NDA
         than its header says), damaged (a PNG chunk failing its checksum) or too large for
         OpenCV.
     """
+    return _read_image(Path(path), orientation=orientation, width=width, warp=False)
+
+
+def _reduction(path: Path, header: ImageHeader | None, *, warp: bool, width: int | None) -> int:
+    """1 when reading (and warping) ``path`` fits in memory, 2, 4 or 8 for a JPEG decoded reduced to fit; else refused."""
+    have = available_memory()
+    if header is None or have is None or (need := _needed(header, warp=warp, width=width)) <= have:
+        return 1
+    if header.format == "JPEG" and width is not None:
+        longer = max(header.width, header.height)  # the panorama's width, whichever way its EXIF orientation turns it
+        for factor in _REDUCTIONS:
+            whole = header.width % factor == 0 and header.height % factor == 0  # 2:1 stays 2:1
+            if whole and longer // factor >= width and _needed(header, warp=warp, width=width, reduce=factor) <= have:
+                return factor
+    raise _refusal(path, header, need, have, warp=warp, width=width)
+
+
+def _read_image(path: Path, *, orientation: bool, width: int | None, warp: bool) -> NDArray:
     import cv2
 
     path = Path(path)
     if path.is_dir():
         raise ImageError(f"{path}: is a folder, not an image file")
-    try:
-        require_regular_file(path, "image")  # a FIFO would hang the read, a device never end
-    except NotRegularFileError as exc:
-        raise ImageError(str(exc)) from None
+    header = image_header(path)  # refuses a FIFO or a device: the read would hang, or never end
+    reduce = _reduction(path, header, warp=warp, width=width)
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -385,7 +900,7 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True) -> NDA
         raise ImageError(f"{path}: the file is empty")
     kind = _format(data)
     if kind == "npy":
-        return _read_npy(path, data)
+        return _read_npy(path, data, header)
     problem, exif, size = None, None, None
     if kind == "JPEG":
         problem, exif, size = _jpeg_structure(data)
@@ -407,8 +922,11 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True) -> NDA
         if problem.startswith("damaged"):
             raise ImageError(f"{path}: the file is {problem}")
         raise ImageError(f"{path}: the file looks truncated ({problem}); was it copied or downloaded whole?")
+    flags = cv2.IMREAD_UNCHANGED
+    if reduce > 1 and header is not None:  # a JPEG decoded smaller; OpenCV must not turn it too (done below)
+        flags = getattr(cv2, _REDUCTIONS[reduce][1 if len(header.shape) == 2 else 0]) | cv2.IMREAD_IGNORE_ORIENTATION
     try:
-        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     except cv2.error as exc:
         raise ImageError(f"{path}: OpenCV cannot decode it ({str(exc).strip().splitlines()[-1]})") from None
     if image is None:
@@ -442,7 +960,7 @@ def _swap_red_blue(image: NDArray) -> NDArray:
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB if image.shape[2] == 3 else cv2.COLOR_BGRA2RGBA)
 
 
-def read_panorama(path: str | os.PathLike[str], fit: Fit | None = None) -> NDArray:
+def read_panorama(path: str | os.PathLike[str], fit: Fit | None = None, *, width: int | None = None, warp: bool = False) -> NDArray:
     """Read an equirectangular panorama: :func:`read_image`, made 2:1 as ``fit`` says, then :func:`check_panorama`.
 
     Parameters
@@ -450,6 +968,12 @@ def read_panorama(path: str | os.PathLike[str], fit: Fit | None = None) -> NDArr
     path : path-like
     fit : {"pad", "stretch"}, optional
         :func:`to_equirectangular` first; by default an image that is not 2:1 is refused.
+    width : int, optional
+        The width it is to be warped to (default: its own). A JPEG that would not fit in
+        memory whole may be decoded reduced (:func:`read_image`).
+    warp : bool
+        Count the memory of a warp to ``width`` too (:func:`memory_needed`), so that a
+        panorama whose warp would not fit is refused before it is decoded.
 
     Returns
     -------
@@ -460,7 +984,7 @@ def read_panorama(path: str | os.PathLike[str], fit: Fit | None = None) -> NDArr
     ImageError
         Naming the file and what is wrong with it.
     """
-    image = read_image(path)
+    image = _read_image(Path(path), orientation=True, width=width, warp=warp)
     if fit is not None:
         image = to_equirectangular(image, fit, str(path))
     return check_panorama(image, str(path))
