@@ -239,7 +239,8 @@ _HOLDERS_LOCK = threading.RLock()  # taken before any session's own lock
 _MAX_NUMBER = 10_000  # room.jpg.2.omniwidget-autosave.json to room.jpg.9999.omniwidget-autosave.json
 
 
-def _key(path: Path) -> str:
+def _path_key(path: Path) -> str:
+    """The name an autosave file goes by in :data:`_HOLDERS`: its absolute path, links resolved."""
     return str(path.resolve())
 
 
@@ -348,7 +349,7 @@ def _held_elsewhere(path: Path) -> bool:
 
 def _in_use(path: Path) -> str:
     """Where an editor holds ``path``: "this kernel", "another kernel or program", or ""."""
-    if _HOLDERS.get(_key(path)) is not None:
+    if _HOLDERS.get(_path_key(path)) is not None:
         return "this kernel"
     return "another kernel or program" if _held_elsewhere(path) else ""
 
@@ -867,7 +868,7 @@ class EditingSession:
         refused = _not_regular(path)
         if refused:
             return f"{refused}; it is left as it is"
-        holder = _HOLDERS.get(_key(path))
+        holder = _HOLDERS.get(_path_key(path))
         if holder is not None and holder is not self:
             holder._hand_over(self)
             return ""
@@ -892,14 +893,14 @@ class EditingSession:
         old, self._claim = self._claim, claim
         if old is not None:
             old.close()
-        _HOLDERS[_key(path)] = self
+        _HOLDERS[_path_key(path)] = self
 
     def _release(self) -> None:
         """Let go of the autosave file (the file stays): another editor may take it."""
         with _HOLDERS_LOCK:
             path = self.autosave_path
-            if path is not None and _HOLDERS.get(_key(path)) is self:
-                del _HOLDERS[_key(path)]
+            if path is not None and _HOLDERS.get(_path_key(path)) is self:
+                del _HOLDERS[_path_key(path)]
             if self._claim is not None:
                 self._claim.close()
                 self._claim = None
