@@ -282,7 +282,7 @@ def test_many_frames_refuse_what_would_lose_work(files, frames, capsys):
     cases = {
         "with 5 inputs, -o names a folder": ["warp", *f, "-H", f"{d}/h.json", "-o", f"{d}/o.png"],
         "inputs share the file name f00.png": ["warp", f[0], str(twin), "-H", f"{d}/h.json", "-o", f"{d}/out"],
-        "the output would overwrite an input": ["warp", *f, "-H", f"{d}/h.json", "-o", str(frames[0].parent)],
+        "frames/f00.png would overwrite the input": ["warp", *f, "-H", f"{d}/h.json", "-o", str(frames[0].parent)],
         "bad_map.npy: a map must have shape (H, 2H, 2)": ["warp", *f, "--apply-map", f"{d}/bad_map.npy", "-o", f"{d}/out"],
         "missing.npy: cannot read the map": ["warp", *f, "--apply-map", f"{d}/missing.npy", "-o", f"{d}/out"],
     }

@@ -3,16 +3,22 @@
 A successful run ends with one line on stderr saying what was written, its size, the time
 and how the result came out (``--quiet``: nothing). Bad input of any kind gives one line on
 stderr saying what and where, in the command line's words (the option that fixes it), exit
-status 2, no traceback and no output file. Outputs are written whole (temporary file, then
-rename).
+status 2, no traceback and no output file; so does an output that would overwrite an input,
+the handles file, the map or another output (:func:`_refuse_overwrites`), before any work.
+Outputs are written whole (a hidden temporary file beside each, synced, then a rename); Ctrl+C
+and SIGTERM remove it on the way out (exit 130 and 143), and what a ``kill -9`` left is
+removed by the next run on the same output.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
@@ -24,6 +30,8 @@ if TYPE_CHECKING:
 EXIT_BAD_INPUT = 2
 #: Ctrl+C, as a shell reports a process ended by SIGINT (128 + 2).
 EXIT_INTERRUPTED = 130
+#: SIGTERM (``kill``, a job scheduler, a container stopped), as a shell reports it (128 + 15).
+EXIT_TERMINATED = 143
 
 #: The demo's handles on the bundled panorama: the bent top edges of the window wall and the
 #: television, rectified; a cage that holds the armchair still.
@@ -37,6 +45,28 @@ DEMO_HANDLES = {
     ],
     "options": {"rectify": "all"},
 }
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread as Ctrl+C is, so that what is being written is removed on the way out."""
+
+
+def _on_sigterm(signum: int, frame: object) -> NoReturn:
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM ends the process at once, as by default
+    raise _Terminated
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """While the command runs, SIGTERM raises :class:`_Terminated` (in the main thread only: Python's signals go there)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 class _FramesFailed(Exception):
@@ -250,11 +280,23 @@ def _quiet_opencv() -> None:
         logging.setLogLevel(logging.LOG_LEVEL_SILENT)
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
-    except OSError:
-        return False
+def _refuse_overwrites(args: argparse.Namespace, writes: Sequence[tuple[str, Path | None]]) -> None:
+    """Refuse, before any work, an output that names an input, the handles file, the map or another output; then clear its leftovers.
+
+    ``writes`` are the outputs in the order they are written, each with its option (``-o``,
+    ``--map``; None: not asked for). The paths are compared as files (symbolic and hard links
+    too): one line names both (:func:`omniwidget._files.refuse_overwrites`). Then what killed
+    runs left beside the outputs (hidden ``.NAME.*.tmp`` and ``.part`` files no live run holds)
+    is removed.
+    """
+    from .._files import refuse_overwrites, remove_leftovers
+
+    reads: list[tuple[str, Path]] = [("the input", p) for p in (args.input if isinstance(args.input, list) else [args.input])]
+    if args.command == "warp":  # level's -H is one of its outputs
+        reads += [(what, p) for what, p in (("the handles file", args.handles), ("the map", args.apply_map)) if p is not None]
+    named = [(what, p) for what, p in writes if p is not None]
+    refuse_overwrites(reads, named)
+    remove_leftovers(*(p for _, p in named))
 
 
 def _cmd_warp(args: argparse.Namespace) -> None:
@@ -285,13 +327,11 @@ def _cmd_warp(args: argparse.Namespace) -> None:
 
 def _warp_one(args: argparse.Namespace) -> None:
     from ..document.handles import load_handles
-    from ..errors import ImageError
     from ..io.images import check_writable, read_panorama, write_bytes
 
     (source,) = args.input
-    if _same_file(args.output, source):
-        raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
     _check_output(args.output, _IMAGE_SUFFIXES, "output image")
+    _refuse_overwrites(args, [("-o", args.output), ("--map", args.map)])
     handles = load_handles(args.handles)
     image = read_panorama(source, args.fit)
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
@@ -340,10 +380,7 @@ def _frame_outputs(args: argparse.Namespace) -> list[Path]:
         unwritable = next((o for o in outputs if o.suffix.lower() not in _IMAGE_SUFFIXES), None)
         if unwritable is not None:
             raise ImageError(f"{unwritable}: outputs keep their input's name, and the output must end in {', '.join(_IMAGE_SUFFIXES)}")
-    sources = {p.resolve() for p in inputs}
-    clash = next((o for o in outputs if o.resolve() in sources or any(_same_file(o, i) for i in inputs)), None)
-    if clash is not None:
-        raise ImageError(f"{clash}: the output would overwrite an input; choose another folder")
+    _refuse_overwrites(args, [*((("-o" if len(inputs) == 1 else "the output"), o) for o in outputs), ("--map", args.map)])
     return outputs
 
 
@@ -431,6 +468,9 @@ def _warp_on_dask(args: argparse.Namespace, videos: bool) -> None:
         raise ImageError(f"{args.output}: with {len(args.input)} inputs, -o names a folder for their outputs")
     # images alone are checked here as without --dask; with a video, the batch checks each output's suffix
     outputs: Any = _frame_outputs(args) if not videos else ([args.output] if len(args.input) == 1 else args.output)
+    if videos:
+        each = outputs if len(args.input) == 1 else [args.output / p.name for p in args.input]
+        _refuse_overwrites(args, [(("-o" if len(each) == 1 else "the output"), o) for o in each])
     if not videos and len(outputs) > 1:
         args.output.mkdir(exist_ok=True)
     handles = load_handles(args.handles) if args.handles is not None else None
@@ -526,9 +566,8 @@ def _warp_video(args: argparse.Namespace) -> None:
         raise ImageError(f"{args.output}: a video output needs a video input ({', '.join(_VIDEO_SUFFIXES)}), and {source} is not one")
     if args.fit is not None:
         raise ImageError("--fit is not for videos")
-    if _same_file(args.output, source):
-        raise ImageError(f"{args.output}: the output would overwrite the input; choose another file")
     _check_output(args.output, OUTPUT_SUFFIXES, "output video")
+    _refuse_overwrites(args, [("-o", args.output), ("--map", args.map)])
     if args.width is not None and args.width % 4:
         raise ImageError(f"--width {args.width}: a video's width must be a multiple of 4 (4:2:0 video has even sizes)")
     start = time.perf_counter()
@@ -579,14 +618,6 @@ def _warp_video(args: argparse.Namespace) -> None:
     )
 
 
-def _check_input_and_output(source: Path, output: Path, suffixes: Sequence[str], what: str) -> None:
-    from ..errors import ImageError
-
-    if _same_file(output, source):
-        raise ImageError(f"{output}: the output would overwrite the input; choose another file")
-    _check_output(output, suffixes, what)
-
-
 def _cmd_level(args: argparse.Namespace) -> None:
     """``omniwidget level``: the camera's tilt from the vertical edges, undone by the level handle's rotation (as warp does)."""
     from ..detect import level
@@ -594,13 +625,10 @@ def _cmd_level(args: argparse.Namespace) -> None:
     from ..io.images import check_writable, read_panorama, write_bytes
 
     _quiet_opencv()
-    _check_input_and_output(args.input, args.output, _IMAGE_SUFFIXES, "output image")
-    for path, suffixes, what in ((args.map, (".npy",), "map file"), (args.handles, (".json",), "handles file")):
+    for path, suffixes, what in ((args.output, _IMAGE_SUFFIXES, "output image"), (args.map, (".npy",), "map file"), (args.handles, (".json",), "handles file")):
         if path is not None:
-            _check_input_and_output(args.input, path, suffixes, what)
-    named = [p for p in (args.output, args.map, args.handles) if p is not None]
-    if len({p.resolve() for p in named}) < len(named):
-        raise ImageError("-o, --map and --handles must name different files")
+            _check_output(path, suffixes, what)
+    _refuse_overwrites(args, [("-o", args.output), ("--map", args.map), ("-H", args.handles)])
     if args.width is not None and (args.width < 2 or args.width % 2):
         raise ImageError(f"--width {args.width}: the width must be even and at least 2")
     image = read_panorama(args.input, args.fit)
@@ -627,7 +655,8 @@ def _cmd_suggest(args: argparse.Namespace) -> None:
     from ..io.images import read_panorama, write_bytes
 
     _quiet_opencv()
-    _check_input_and_output(args.input, args.output, (".json",), "handles file")
+    _check_output(args.output, (".json",), "handles file")
+    _refuse_overwrites(args, [("-o", args.output)])
     if args.max_lines < 1:
         raise ImageError(f"--max-lines {args.max_lines}: at least one line")
     image = read_panorama(args.input, args.fit)
@@ -701,7 +730,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     args.started = time.perf_counter()
     try:
-        {"warp": _cmd_warp, "level": _cmd_level, "suggest": _cmd_suggest, "demo": _cmd_demo, "schema": _cmd_schema}[args.command](args)
+        with _sigterm_as_interrupt():
+            {"warp": _cmd_warp, "level": _cmd_level, "suggest": _cmd_suggest, "demo": _cmd_demo, "schema": _cmd_schema}[args.command](args)
     except OmniwidgetError as exc:
         print(f"omniwidget {args.command}: error: {_as_command_line(str(exc))}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -714,6 +744,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except MemoryError:
         print(f"omniwidget {args.command}: error: not enough memory for this image (try a smaller --width)", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except _Terminated:  # SIGTERM: as Ctrl+C, the temporary files removed on the way out
+        print(f"omniwidget {args.command}: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
     except KeyboardInterrupt:  # Ctrl+C: outputs are written whole or not at all, so none is left half-written
         newline = "\n" if sys.stderr.isatty() else ""  # the terminal has echoed ^C
         print(f"{newline}omniwidget {args.command}: interrupted", file=sys.stderr)
