@@ -784,11 +784,11 @@ class EditingSession:
             self._restored = doc.to_dict()
             notes.append(f"restored {_count(saved)} from {target} (undo to start without them)")
         where = _in_use(target)
-        for path, saved, problem, refused in found:
+        for path, saved, problem, special in found:
             if path == home and saved is not None and len(saved) and given and saved != doc:
                 fate = "it is kept" if where == "another kernel or program" else "the first edit replaces it"
                 notes.append(f"the autosave {home} ({_count(saved)}) is not used: handles were given; {fate}")
-            elif path == target and problem and not refused:
+            elif path == target and problem and not special:
                 self._autosave_bad = True
                 aside = f"the file is kept, as {_aside(path).name} from the first edit"
                 notes.append(
