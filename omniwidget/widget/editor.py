@@ -130,12 +130,11 @@ class Editor(anywidget.AnyWidget):
         over it only while the file is the one it last wrote or read. An editor that finds it
         open in another kernel, or written by another editor since it opened it, autosaves to
         a file of its own beside it, ``<name>.2.omniwidget-autosave.json``, and says so in the
-        status; a
-        newer editor of the same panorama in the same kernel (a cell run again) takes the file
-        over, and the older one keeps its handles in a file of its own. Opening restores the
-        newest of these files and names the others (:attr:`other_autosaves`). A FIFO or a
-        device at the autosave path is never opened: the status says so, and the editor
-        autosaves to a file of its own.
+        status; a newer editor of the same panorama in the same kernel (a cell run again)
+        takes the file over, and the older one keeps its handles in a file of its own.
+        Opening restores the newest of these files and names the others
+        (:attr:`other_autosaves`). A FIFO or a device at the autosave path is never opened:
+        the status says so, and the editor autosaves to a file of its own.
 
     quality : bool
         Measure each result's quality figures after it is shown (straightness, fold-over,
