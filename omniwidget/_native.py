@@ -323,6 +323,23 @@ def _write_new(path: Path, data: bytes, mode: int) -> None:
         raise
 
 
+def _new_key(path: Path, *, replace: bool) -> bytes:
+    """Make the user's secret at ``path`` (mode 0600, written whole); the one another process has just made, if any."""
+    key = secrets.token_bytes(32)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    _write_new(tmp, key, 0o600)
+    try:
+        if replace:
+            os.replace(tmp, path)
+        else:
+            os.link(tmp, path)  # never over a key another process has just made
+    except FileExistsError:
+        return _read_ours(path, private=True)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return key
+
+
 def _key() -> bytes | None:
     """The user's secret that signs the stored kernels, made on first use; None when it cannot be kept where only the user reaches it."""
     path = _user_cache() / "native.key"
@@ -337,27 +354,15 @@ def _key() -> bytes | None:
             return None
         try:
             key = _read_ours(path, private=True)
-            if len(key) != 32:
-                raise _Refused(f"it has {len(key)} bytes, not 32")
-            replace = False
+            bad = None if len(key) == 32 else f"it has {len(key)} bytes, not 32"
         except FileNotFoundError:
-            key, replace = b"", False
+            key, bad = b"", None
         except _Refused as exc:
-            _say(logging.WARNING, f"the key of the stored kernels {path} is made anew: {exc}")
-            key, replace = b"", True
-        if not key:
-            key = secrets.token_bytes(32)
-            tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
-            _write_new(tmp, key, 0o600)
-            try:
-                if replace:
-                    os.replace(tmp, path)
-                else:
-                    os.link(tmp, path)  # never over a key another process has just made
-            except FileExistsError:
-                key = _read_ours(path, private=True)
-            finally:
-                tmp.unlink(missing_ok=True)
+            key, bad = b"", str(exc)
+        if bad is not None:
+            _say(logging.WARNING, f"the key of the stored kernels {path} is made anew: {bad}")
+        if bad is not None or not key:
+            key = _new_key(path, replace=bad is not None)
     except (OSError, _Refused) as exc:
         _say(logging.DEBUG, f"stored kernels not used: no key in {path.parent} ({exc})")
         return None
@@ -641,9 +646,11 @@ def secure_numba_cache(namespace: dict[str, Any]) -> None:
         try:
             for d in dispatchers:
                 d.enable_caching()
+            instead = _distrust_numba(dispatchers)  # numba makes its subfolder there with the umask
+        except Exception as exc:  # noqa: BLE001 - no cache then, never a kernel that cannot run
+            instead = f"numba cannot cache there ({exc})"
         finally:
             config.CACHE_DIR = before
-        instead = _distrust_numba(dispatchers)  # numba makes its subfolder there with the umask
     if instead is not None:
         for d in dispatchers:
             d._cache = NullCache()
