@@ -58,17 +58,34 @@ def same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
 
     A path that does not exist yet is compared by its resolved name only.
     """
-    return not set(_identities(a)).isdisjoint(_identities(b))
+    return not set(_identities(a, {})).isdisjoint(_identities(b, {}))
 
 
-def _identities(path: str | os.PathLike[str]) -> list[tuple[object, ...]]:
-    """What names the file at ``path``: its resolved path and, if it exists, its device and inode (hard links share them)."""
-    keys: list[tuple[object, ...]] = [("path", os.path.realpath(path))]
+def _identities(path: str | os.PathLike[str], folders: dict[str, str]) -> list[tuple[object, ...]]:
+    """What names the file at ``path``: its resolved path and, if it exists, its device and inode (hard links share them).
+
+    ``folders`` keeps each folder resolved once (a thousand frames share one): a path is then
+    resolved by its folder and a look at its own name (:func:`os.path.realpath` in full if that
+    is a link).
+    """
+    text = os.fspath(path)
+    folder, name = os.path.split(text)
     try:
-        found = os.stat(path)
+        found: os.stat_result | None = os.lstat(text)
     except (OSError, ValueError):  # missing (or not a path the system takes): its name alone
-        return keys
-    return [*keys, ("inode", found.st_dev, found.st_ino)]
+        found = None
+    if name in ("", ".", "..") or (found is not None and stat.S_ISLNK(found.st_mode)):
+        resolved = os.path.realpath(text)
+        try:
+            found = os.stat(text)
+        except (OSError, ValueError):  # a link to nothing
+            found = None
+    else:
+        if folder not in folders:
+            folders[folder] = os.path.realpath(folder or os.curdir)
+        resolved = os.path.join(folders[folder], name)
+    keys: list[tuple[object, ...]] = [("path", resolved)]
+    return keys if found is None else [*keys, ("inode", found.st_dev, found.st_ino)]
 
 
 def refuse_overwrites(reads: Iterable[Named], writes: Iterable[Named]) -> None:
@@ -90,11 +107,12 @@ def refuse_overwrites(reads: Iterable[Named], writes: Iterable[Named]) -> None:
         looked up once, so thousands of frames cost milliseconds.
     """
     seen: dict[tuple[object, ...], tuple[str, str | os.PathLike[str], bool]] = {}  # identity -> (what, path, an output)
+    folders: dict[str, str] = {}
     for what, path in reads:
-        for key in _identities(path):
+        for key in _identities(path, folders):
             seen.setdefault(key, (what, path, False))
     for what, path in writes:
-        keys = _identities(path)
+        keys = _identities(path, folders)
         clash = next((seen[k] for k in keys if k in seen), None)
         if clash is not None:
             other_what, other, written = clash
