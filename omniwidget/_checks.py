@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import operator
 import os
 import stat
@@ -10,9 +11,9 @@ from typing import SupportsIndex
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ImageError, NotRegularFileError
+from .errors import ImageError, NotRegularFileError, OmniwidgetError
 
-__all__ = ["SUPPORTED_DTYPES", "check_image", "check_inverse_map", "check_panorama", "require_regular_file", "whole_number"]
+__all__ = ["SUPPORTED_DTYPES", "check_image", "check_inverse_map", "check_panorama", "limit", "require_regular_file", "whole_number"]
 
 #: Sample types a panorama may have; each is kept through a warp.
 SUPPORTED_DTYPES = (np.uint8, np.uint16, np.float32, np.float64)
@@ -26,6 +27,38 @@ _SPECIAL_KINDS = (
     (stat.S_ISSOCK, "a socket"),
     (stat.S_ISDIR, "a folder"),
 )
+
+
+def limit(name: str, default: int) -> int:
+    """A cap of the toolkit: ``default``, or the environment variable ``OMNIWIDGET_MAX_<NAME>`` when it is set.
+
+    Parameters
+    ----------
+    name : str
+        The cap's name in upper case, e.g. ``"HANDLES"`` (``OMNIWIDGET_MAX_HANDLES``).
+    default : int
+        The documented cap.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    OmniwidgetError
+        If the variable is set to anything but a positive whole number (``1e6`` is taken).
+    """
+    variable = f"OMNIWIDGET_MAX_{name}"
+    given = os.environ.get(variable, "").strip()
+    if not given:
+        return default
+    try:
+        value = float(given)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 1 and value == int(value)):
+        raise OmniwidgetError(f"{variable}={given!r}: expected a positive whole number")
+    return int(value)
 
 
 def require_regular_file(path: str | os.PathLike[str], what: str) -> None:

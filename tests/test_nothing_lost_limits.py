@@ -22,10 +22,11 @@ import numpy as np
 import pytest
 
 from omniwidget._checks import require_regular_file
-from omniwidget.document.handles import load_handles
+from omniwidget.document.handles import Handles, load_handles
 from omniwidget.errors import HandlesError, ImageError, NotRegularFileError, OmniwidgetError
 from omniwidget.io import images
 from omniwidget.io.images import check_fits, decode_bytes, image_header, memory_needed, read_image, read_panorama, write_image
+from omniwidget.raster.pipeline import warp
 
 POINT = {"handles": [{"kind": "point", "position": [10, 20], "target": [30, 10]}]}
 
@@ -306,3 +307,80 @@ def test_a_huge_jpeg_is_decoded_reduced_where_a_smaller_width_is_asked(tmp_path:
     assert read_image(path, width=256).shape == (512, 1024, 3)  # the least reduction that fits
     monkeypatch.setenv("OMNIWIDGET_MEMORY", "2M")
     assert read_image(path, width=256).shape == (256, 512, 3)
+
+
+# --- caps on handles, samples, mesh and weights ---------------------------------------------------
+
+
+def _points(count: int) -> dict:
+    """``count`` distinct point handles, each moved a degree."""
+    return {
+        "handles": [
+            {"kind": "point", "position": [i % 360 - 179.5, (i // 360) % 170 - 84.5], "target": [i % 360 - 179, (i // 360) % 170 - 84]}
+            for i in range(count)
+        ]
+    }
+
+
+def test_10000_point_handles_are_refused_at_once_naming_the_limit(tmp_path: Path) -> None:
+    image = tmp_path / "in.png"
+    write_image(image, np.zeros((256, 512, 3), np.uint8))
+    many = _write(tmp_path / "many.json", json.dumps(_points(10_000)))  # before: 73 s and 10 GB
+    with pytest.raises(HandlesError, match=r"many\.json: handles: 10000 handles are more than the limit of 1000 \(MAX_HANDLES"):
+        load_handles(many)
+    run = _cli("warp", str(image), "-H", str(many), "-o", str(tmp_path / "out.png"), timeout=60, memory=ULIMIT)
+    _one_line_refusal(run, str(many), "limit of 1000", "OMNIWIDGET_MAX_HANDLES=10000")
+    cage = {"handles": [{"kind": "cage", "vertices": [[0.01 * i, 0.0] for i in range(1001)]}]}
+    with pytest.raises(HandlesError, match=r"1001 handles \(a cage's vertices counted each\)"):
+        Handles.from_dict(cage)
+
+
+def test_the_handles_cap_is_raised_by_its_variable(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("OMNIWIDGET_MAX_HANDLES", "1200")
+    assert len(Handles.from_dict(_points(1200))) == 1200
+    with pytest.raises(HandlesError, match="more than the limit of 1200"):
+        Handles.from_dict(_points(1201))
+    monkeypatch.setenv("OMNIWIDGET_MAX_HANDLES", "many")
+    with pytest.raises(OmniwidgetError, match="OMNIWIDGET_MAX_HANDLES='many': expected a positive whole number"):
+        Handles.from_dict(_points(1))
+
+
+def test_a_handles_file_too_large_is_refused_before_it_is_read(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from omniwidget.document import handles as document
+
+    monkeypatch.setattr(document, "MAX_FILE_BYTES", 1000)
+    big = _write(tmp_path / "big.json", json.dumps(_points(50)))
+    with pytest.raises(HandlesError, match=r"big\.json: the handles file is 0 MB, more than the 0 MB read"):
+        load_handles(big)
+
+
+def test_samples_are_capped() -> None:
+    doc = Handles.from_dict({"handles": [{"kind": "line", "start": [-30, 20], "end": [30, 25]}, POINT["handles"][0]]})
+    with pytest.raises(ValueError, match=r"samples: 5000 per line and cage edge are more than the limit of 1000 \(MAX_SAMPLES"):
+        warp(np.zeros((32, 64, 3), np.uint8), doc, samples=5000, warn=False)
+
+
+def test_the_mesh_and_the_weights_are_capped_before_the_work(monkeypatch: pytest.MonkeyPatch) -> None:
+    doc = Handles.from_dict(_points(40))
+    image = np.zeros((32, 64, 3), np.uint8)
+    monkeypatch.setenv("OMNIWIDGET_MAX_MESH_VERTICES", "100")
+    with pytest.raises(HandlesError, match=r"handles: the handles make [\d,]+ samples, .* more than the limit of 100 \(MAX_MESH_VERTICES"):
+        warp(image, doc, warn=False)
+    monkeypatch.delenv("OMNIWIDGET_MAX_MESH_VERTICES")
+    monkeypatch.setenv("OMNIWIDGET_MAX_WEIGHTS", "10000")
+    with pytest.raises(
+        HandlesError, match=r"mesh vertices x 41 controls = .* more than the limit of 0 million \(MAX_WEIGHTS.*OMNIWIDGET_MAX_WEIGHTS="
+    ):
+        warp(image, doc, warn=False)
+
+
+@pytest.mark.slow  # about 25 s: the lines' crossings are found, then the cap refuses
+def test_1000_crossing_lines_are_refused_by_the_weights_cap(tmp_path: Path) -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from bench.bench_limits import _document
+
+    lines = _write(tmp_path / "lines.json", json.dumps(_document("line", 1000)))  # before: 56 s and 2.6 GB, or more
+    image = tmp_path / "in.png"
+    write_image(image, np.zeros((256, 512, 3), np.uint8))
+    run = _cli("warp", str(image), "-H", str(lines), "-o", str(tmp_path / "out.png"), timeout=120, memory=ULIMIT)
+    _one_line_refusal(run, "more than the limit of 30 million (MAX_WEIGHTS", "OMNIWIDGET_MAX_WEIGHTS=")

@@ -34,7 +34,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import require_regular_file
+from .._checks import limit, require_regular_file
 from ..errors import HandlesError, NotRegularFileError
 from ..sphere import coords
 from ..sphere.moebius import Moebius, frame_rotation
@@ -46,6 +46,8 @@ __all__ = [
     "Handles",
     "LineHandle",
     "MAX_DEPTH",
+    "MAX_FILE_BYTES",
+    "MAX_HANDLES",
     "Options",
     "PointHandle",
     "REACH_RANGE",
@@ -72,6 +74,15 @@ REACH_RANGE = (0.5, 90.0)
 #: The deepest nesting of arrays and objects a handles file may have (a document needs 5):
 #: deeper JSON is refused before it is parsed.
 MAX_DEPTH = 32
+#: The most handles a document may have, a cage's vertices counted each (each is a control of
+#: the blend); ``OMNIWIDGET_MAX_HANDLES`` raises it. The cost grows faster than the count:
+#: 1,000 point handles took 154 s and 1.2 GB on a loaded machine, 300 lines 234 s and 0.85 GB
+#: (bench/RESULTS.md, "Limits (issue 35)"); the weights' own cap
+#: (:data:`omniwidget.method.deformation.MAX_WEIGHTS`) may refuse fewer lines.
+MAX_HANDLES = 1000
+#: The largest handles file read (bytes): a document of :data:`MAX_HANDLES` handles takes
+#: about 0.2 MB; a larger file is refused before it is read.
+MAX_FILE_BYTES = 64 << 20
 
 LonLat = tuple[float, float]
 
@@ -385,6 +396,11 @@ def load_handles(path: str | os.PathLike[str]) -> Handles:
     path = Path(path)
     try:
         require_regular_file(path, "handles file")  # a FIFO would hang the read, a device never end
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise HandlesError(
+                str(path), f"the handles file is {size / 1e6:.0f} MB, more than the {MAX_FILE_BYTES / 1e6:.0f} MB read (1,000 handles take 0.2 MB)"
+            )
         text = path.read_bytes()
     except NotRegularFileError as exc:
         raise HandlesError(str(path), f"cannot read the handles file: it is {exc.kind}, not a regular file") from None
@@ -588,11 +604,24 @@ def _validate_handle(h: Handle, where: str) -> None:
         raise HandlesError(f"{where}.id", f"expected a non-empty string, got {_describe(h.id)}")
 
 
+def _check_count(sizes: list[int]) -> None:
+    """Refuse more than :data:`MAX_HANDLES` handles (``OMNIWIDGET_MAX_HANDLES``); ``sizes``: 1 per point or line, a cage's vertices."""
+    count, cap = sum(sizes), limit("HANDLES", MAX_HANDLES)
+    if count > cap:
+        cages = " (a cage's vertices counted each)" if len(sizes) < count else ""
+        raise HandlesError(
+            "handles",
+            f"{count} handles{cages} are more than the limit of {cap} (MAX_HANDLES: the weights' cost grows faster than "
+            f"the count, 1,000 points take minutes and over a GB); set OMNIWIDGET_MAX_HANDLES={count} to allow them",
+        )
+
+
 def _validate_document(doc: Handles) -> None:
     if not isinstance(doc.options, Options) or doc.options.rectify not in ("all", "each"):
         raise HandlesError("options.rectify", f"expected 'all' or 'each', got {_describe(getattr(doc.options, 'rectify', None))}")
     if doc.options.anchor is not None:
         _number(doc.options.anchor, "options.anchor", *ANCHOR_RANGE)
+    _check_count([len(h.vertices) if isinstance(h, CageHandle) and isinstance(h.vertices, Sequence) else 1 for h in doc.handles])
     seen: dict[str, int] = {}
     for i, h in enumerate(doc.handles):
         _validate_handle(h, f"handles[{i}]")
@@ -618,6 +647,7 @@ def _parse_document(data: Any) -> Handles:
     items = data["handles"]
     if not isinstance(items, list):
         raise HandlesError("handles", f"expected a list, got {_describe(items)}")
+    _check_count([len(v) if isinstance(h, Mapping) and isinstance(v := h.get("vertices"), list) else 1 for h in items])  # before the work
     options = data.get("options", {})
     if not isinstance(options, Mapping):
         raise HandlesError("options", f"expected an object, got {_describe(options)}")

@@ -26,11 +26,13 @@ from ..sphere.arcs import crossing_pairs, inside_polygon
 from ..sphere.moebius import Moebius
 from .background import BACKGROUND_EASE, cage_insides, carry_insides, ease_background, with_background
 from .constraints import SAMPLES, Constraints, Control, build_constraints
+from .limits import check_mesh, check_weights
 from .locate import interpolate, locate_points
 from .mesh import adaptive_mesh
 from .reach import reach_samples, solved, with_reach
 
 __all__ = ["Deformation", "blended_points", "deform"]
+
 
 #: An empty set of constraints, to strip a solve's controls of its ladders (:func:`.reach.solved`).
 _EMPTY = Constraints((), np.zeros((0, 3)), np.zeros((0, 0)), ())
@@ -197,6 +199,7 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
 
     problems += _inside_fixed_cages(handles) + _crossing_lines(constraints)
     extra_samples = reach_samples(handles) if handles.options.anchor is not None else np.empty((0, 3))
+    check_mesh(len(constraints.points) + len(extra_samples), samples)
     mesh = adaptive_mesh(np.vstack([constraints.points, extra_samples]))
     sample_index = mesh.sample_index[: len(constraints.points)]
     lap("mesh")
@@ -214,6 +217,7 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
 
     raw = _previous_weights(previous, mesh.vertices, mesh.faces, b, bc)
     if raw is None:
+        check_weights(len(mesh.vertices), bc.shape[1])
         raw = bbw(mesh.vertices, mesh.faces, b, bc, start=_warm_start(previous, constraints, mesh.vertices))
     weights = normalize_rows(raw)
     if handles.options.anchor is not None:
