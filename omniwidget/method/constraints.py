@@ -32,12 +32,23 @@ from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
 from ..sphere import coords
 from ..sphere.arcs import arc_crossing
 from ..sphere.moebius import Moebius
+from .limits import check_samples, check_weights
 from .rectify import Anchor, Bone, RectifySolution, solve_bones
 
-__all__ = ["JOINT_DISTANCE", "LINE_TOLERANCE", "POINT_HOLD", "SAMPLES", "Constraints", "Control", "build_constraints", "split_line"]
+__all__ = [
+    "JOINT_DISTANCE",
+    "LINE_TOLERANCE",
+    "POINT_HOLD",
+    "SAMPLES",
+    "Constraints",
+    "Control",
+    "build_constraints",
+    "split_line",
+]
 
 #: Samples per line and per cage edge (the paper's 50).
 SAMPLES = 50
+
 #: Line endpoints closer than this (degrees) merge into one joint: the authors' 2π/150 rad.
 JOINT_DISTANCE = 360.0 / 150.0
 #: How close to an endpoint (degrees) a crossing may be and still split the lines.
@@ -136,25 +147,58 @@ class _Piece:
 
 
 def _split_crossings(pieces: list[_Piece]) -> list[_Piece]:
-    """Split rectified lines at their crossings (Sec. 4), repeatedly until none cross."""
-    changed = True
-    while changed:
-        changed = False
-        for i in range(len(pieces)):
-            for j in range(i + 1, len(pieces)):
-                a, b = pieces[i], pieces[j]
-                if a.line.targets is not None or b.line.targets is not None:
-                    continue  # explicit targets say where three points go: splitting would change them
+    """Split rectified lines at their crossings (Sec. 4), until none cross.
+
+    Pieces are taken in order; each is split at its first crossing with a later piece (both
+    are), and its first half is then looked at again. An earlier piece needs no second look:
+    it did not cross the two that were split, so it crosses none of their halves. Each piece
+    is compared with all later ones at once (:func:`_crossing_candidates`), and only the
+    candidates by :func:`~omniwidget.sphere.arcs.arc_crossing` itself: 1,000 lines take
+    seconds, not the minutes of comparing every pair again after every split.
+    """
+    i = 0
+    while i < len(pieces):
+        a = pieces[i]
+        found = None
+        if a.line.targets is None:  # explicit targets say where three points go: splitting would change them
+            for j in _crossing_candidates(pieces, i):
+                b = pieces[j]
                 x = arc_crossing(a.start, a.end, b.start, b.end, CROSSING_MARGIN)
-                if x is None:
-                    continue
-                pieces[j : j + 1] = [_Piece(b.handle, b.start, x, b.line), _Piece(b.handle, x, b.end, b.line)]
-                pieces[i : i + 1] = [_Piece(a.handle, a.start, x, a.line), _Piece(a.handle, x, a.end, a.line)]
-                changed = True
-                break
-            if changed:
-                break
+                if x is not None:
+                    found = j, b, x
+                    break
+        if found is None:
+            i += 1
+            continue
+        j, b, x = found
+        pieces[j : j + 1] = [_Piece(b.handle, b.start, x, b.line), _Piece(b.handle, x, b.end, b.line)]
+        pieces[i : i + 1] = [_Piece(a.handle, a.start, x, a.line), _Piece(a.handle, x, a.end, a.line)]
     return pieces
+
+
+def _crossing_candidates(pieces: list[_Piece], i: int) -> NDArray[np.intp]:
+    """The later pieces that may cross piece ``i``, in order: :func:`arc_crossing`'s test for all at once, a little looser."""
+    rest = pieces[i + 1 :]
+    if not rest:
+        return np.empty(0, np.intp)
+    a0, a1 = pieces[i].start, pieces[i].end
+    b0 = np.array([p.start for p in rest])
+    b1 = np.array([p.end for p in rest])
+    na = np.cross(a0, a1)
+    nb = np.cross(b0, b1)
+    axis = np.cross(na, nb)
+    norm = np.linalg.norm(axis, axis=1)
+    margin, slack = math.radians(CROSSING_MARGIN), 1e-9  # looser than arc_crossing: it has the last word
+    limit_a = margin * np.linalg.norm(na) - slack
+    limit_b = margin * np.linalg.norm(nb, axis=1) - slack
+    may = np.zeros(len(rest), bool)
+    for sign in (1.0, -1.0):
+        x = axis * (sign / np.maximum(norm, 1e-300))[:, None]
+        inside_a = (np.cross(a0, x) @ na > limit_a) & (np.cross(x, a1) @ na > limit_a)
+        inside_b = (np.einsum("ij,ij->i", np.cross(b0, x), nb) > limit_b) & (np.einsum("ij,ij->i", np.cross(x, b1), nb) > limit_b)
+        may |= inside_a & inside_b
+    targets = np.array([p.line.targets is not None for p in rest])
+    return np.flatnonzero(may & (norm >= 1e-12 * 0.5) & ~targets) + i + 1
 
 
 def _joints(pieces: list[_Piece], distance: float) -> dict[tuple[int, int], int]:
@@ -170,8 +214,11 @@ def _joints(pieces: list[_Piece], distance: float) -> dict[tuple[int, int], int]
         return a
 
     limit = 2 * math.sin(math.radians(distance) / 2)
-    for a in range(len(ends)):
-        for b in range(a + 1, len(ends)):
+    if len(ends) > 1:
+        from scipy.spatial import cKDTree
+
+        # the pairs a little closer than the limit, then the limit itself: the components are those of every pair compared
+        for a, b in cKDTree(xyz).query_pairs(limit * (1 + 1e-9) + 1e-15, output_type="ndarray"):
             if ends[a][0] != ends[b][0] and np.linalg.norm(xyz[a] - xyz[b]) < limit:
                 parent[root(a)] = root(b)
     groups: dict[int, list[int]] = {}
@@ -286,7 +333,7 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     -------
     Constraints
     """
-    samples = whole_number(samples, "samples", 2)
+    samples = check_samples(whole_number(samples, "samples", 2))
     t = np.linspace(0.0, 1.0, samples)
     controls: list[Control] = []
     rows: list[tuple[NDArray[np.float64], dict[int, float]]] = []  # (point, {control: weight})
@@ -302,6 +349,8 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
         if isinstance(h, LineHandle)
     ]
     pieces = _split_crossings(pieces)
+    # the weights' size known so far (a control and samples per piece), before the costlier steps
+    check_weights(len(pieces) * (samples - 1), len(pieces))
     joint_of = _joints(pieces, joint_distance)
     pieces_of: dict[int, list[int]] = {}
     for k, piece in enumerate(pieces):
