@@ -5,12 +5,12 @@ Usage::
 
     python bench/bench_limits.py handles            # point handles and lines at 512 x 256, 10 to 1000
     python bench/bench_limits.py handles --kind line --counts 10 30 100
-    python bench/bench_limits.py pixels             # one line's warp, 1024 to 8192 wide: bytes per output pixel
+    python bench/bench_limits.py pixels             # the command line's warp, 1024 to 8192 wide: bytes per output pixel
     python bench/bench_limits.py one --kind point --count 300 --width 512   # a single run, as JSON
 
 Every figure is one run in a fresh subprocess: its wall time of ``omniwidget.warp`` and
-its peak resident memory (``ru_maxrss``) beside the same subprocess's before the warp, so
-that the growth is the warp's own. Handles are drawn with a fixed seed: points anywhere on
+its peak resident memory (``VmHWM``) beside the same subprocess's before the warp, so
+that the growth is the warp's own; ``pixels`` runs the command line and gives its peak. Handles are drawn with a fixed seed: points anywhere on
 the sphere moved 2 degrees, lines 5 to 15 degrees long, rectified. The figures chose the
 caps of :mod:`omniwidget.method.limits` and the memory estimate of
 :func:`omniwidget.io.images.warp_bytes` (bench/RESULTS.md, "Limits (issue 35)").
@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import subprocess
 import sys
 import time
@@ -55,6 +54,12 @@ def _document(kind: str, count: int, seed: int = 35) -> dict:
     return {"handles": handles}
 
 
+def _peak_mb() -> float:
+    """This process's peak resident memory, MB: ``VmHWM``, which starts afresh at ``exec`` (``ru_maxrss`` keeps the parent's at the fork)."""
+    with open("/proc/self/status") as fh:
+        return int(next(line for line in fh if line.startswith("VmHWM")).split()[1]) / 1024
+
+
 def _one(kind: str, count: int, width: int) -> dict:
     """One warp in this process: seconds and peak memory (MB) before and after."""
     import omniwidget as ow
@@ -63,11 +68,11 @@ def _one(kind: str, count: int, width: int) -> dict:
     image = np.zeros((width // 2, width, 3), np.uint8)
     image[..., 0] = (np.arange(width) % 256)[None]
     ow.warp(np.zeros((8, 16, 3), np.uint8), ow.Handles.from_dict(_document("line", 2)), warn=False)  # imports, kernels
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    before = _peak_mb()
     start = time.perf_counter()
     result = ow.warp(image, doc, warn=False)
     seconds = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    after = _peak_mb()
     return {
         "kind": kind,
         "count": count,
@@ -78,6 +83,59 @@ def _one(kind: str, count: int, width: int) -> dict:
         "controls": len(result.controls),
         "mesh_vertices": 0 if result.vertices is None else len(result.vertices),
         "constraint_points": len(result.constraints.points),
+        "timings": {k: round(v, 2) for k, v in result.timings.items() if v >= 0.05},
+    }
+
+
+#: The demo's handles (two lines, a cage) and a moved point, in the default mode: the command line's warp of a panorama.
+FOUR = {
+    "handles": [
+        {"kind": "line", "start": [-4.0, 37.5], "end": [68.0, 36.5]},
+        {"kind": "line", "start": [-83.0, 12.0], "end": [-45.5, 12.0]},
+        {"kind": "point", "position": [120.0, -10.0], "target": [125.0, -8.0]},
+        {"kind": "cage", "vertices": [[-28.0, -5.0], [-2.0, -5.0], [-2.0, -50.0], [-28.0, -50.0]]},
+    ]
+}
+
+CLI = """
+import json, sys, time
+from omniwidget.app.cli import main
+from omniwidget.raster import _kernels
+start = time.perf_counter()
+code = main(sys.argv[1:])
+seconds = time.perf_counter() - start
+peak = int(next(line for line in open("/proc/self/status") if line.startswith("VmHWM")).split()[1])
+print(json.dumps({"code": code, "seconds": seconds, "peak_kib": peak, "compiled": _kernels.available()}))
+"""
+
+
+def _cli_peak(width: int, out_width: int | None, folder: Path, timeout: float) -> dict:
+    """The command line's warp of a ``width`` x ``width / 2`` JPEG by :data:`FOUR`: its wall time and peak memory."""
+    from omniwidget.io.images import write_image
+
+    source = folder / f"in{width}.jpg"
+    if not source.exists():
+        y, x = np.mgrid[0 : width // 2, 0:width].astype(np.float32)
+        waves = [np.cos(2 * np.pi * x / 256), np.sin(2 * np.pi * y / 200), np.cos(2 * np.pi * (x + y) / 300)]
+        write_image(source, np.stack([127 + 100 * w for w in waves], axis=-1).astype(np.uint8))
+        del x, y, waves
+    (folder / "h.json").write_text(json.dumps(FOUR))
+    argv = ["warp", str(source), "-H", str(folder / "h.json"), "-o", str(folder / "out.jpg"), "-q"]
+    if out_width is not None:
+        argv += ["--width", str(out_width)]
+    try:
+        out = subprocess.run([sys.executable, "-c", CLI, *argv], capture_output=True, text=True, timeout=timeout, check=True)
+    except subprocess.TimeoutExpired:
+        return {"width": width, "out_width": out_width, "seconds": f">{timeout:g}"}
+    except subprocess.CalledProcessError as exc:
+        return {"width": width, "out_width": out_width, "error": exc.stderr.strip().splitlines()[-1]}
+    report = json.loads(out.stdout.strip().splitlines()[-1])
+    return {
+        "width": width,
+        "out_width": out_width or width,
+        "seconds": round(report["seconds"], 2),
+        "peak_mb": round(report["peak_kib"] / 1024),
+        "compiled": report["compiled"],  # the numpy path (no numba) needs more
     }
 
 
@@ -110,8 +168,13 @@ def main() -> None:
             for count in args.counts:
                 print(json.dumps(_run(kind, count, args.width, args.timeout)), flush=True)
     else:
-        for width in args.widths:
-            print(json.dumps(_run(args.kind or "line", args.count, width, args.timeout)), flush=True)
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as folder:
+            print(json.dumps(_cli_peak(64, None, Path(folder), args.timeout)), flush=True)  # the process alone
+            for width in args.widths:
+                for out_width in (None, width // 2):
+                    print(json.dumps(_cli_peak(width, out_width, Path(folder), args.timeout)), flush=True)
 
 
 if __name__ == "__main__":

@@ -76,9 +76,9 @@ REACH_RANGE = (0.5, 90.0)
 MAX_DEPTH = 32
 #: The most handles a document may have, a cage's vertices counted each (each is a control of
 #: the blend); ``OMNIWIDGET_MAX_HANDLES`` raises it. The cost grows faster than the count:
-#: 1,000 point handles took 154 s and 1.2 GB on a loaded machine, 300 lines 234 s and 0.85 GB
-#: (bench/RESULTS.md, "Limits (issue 35)"); the weights' own cap
-#: (:data:`omniwidget.method.deformation.MAX_WEIGHTS`) may refuse fewer lines.
+#: 1,000 point handles took 154 s and 1.2 GB on a loaded machine, 300 crossing lines 36 s and
+#: 0.81 GB (bench/RESULTS.md, "Limits (issue 35)"); the weights' own cap
+#: (:data:`omniwidget.method.limits.MAX_WEIGHTS`) may refuse fewer lines.
 MAX_HANDLES = 1000
 #: The largest handles file read (bytes): a document of :data:`MAX_HANDLES` handles takes
 #: about 0.2 MB; a larger file is refused before it is read.

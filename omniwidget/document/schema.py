@@ -15,7 +15,11 @@ library checks:
 - the positions of a cage's ``vertices``, of its ``targets`` and of a line's ``targets``
   must be pairwise distinct (``MIN_SEPARATION`` apart on the sphere);
 - a cage's ``targets`` must be as many as its ``vertices``;
-- the handles' ``id`` strings must be unique.
+- the handles' ``id`` strings must be unique;
+- no object may give a key twice, and the JSON may nest at most ``MAX_DEPTH`` (32) arrays and
+  objects deep (checked on the text, before parsing);
+- a document holds at most ``MAX_HANDLES`` (1000) handles, a cage's vertices counted each
+  (``OMNIWIDGET_MAX_HANDLES`` raises it, so the schema gives no ``maxItems``).
 """
 
 from __future__ import annotations

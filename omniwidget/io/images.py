@@ -375,10 +375,12 @@ def _read_npy(path: Path, data: bytes, header: ImageHeader | None) -> NDArray:
 
 # --- memory: what reading a file, and warping it, will take ------------------------------------
 
-#: Bytes a warp holds per output pixel besides the output image itself: the pixel
-#: coordinates, the blend's and the fold check's working arrays (measured with
-#: bench/bench_limits.py pixels, the command line's peak; bench/RESULTS.md, "Limits (issue 35)").
-WARP_BYTES_PER_PIXEL = 80
+#: Bytes a warp holds per output pixel besides the output image itself, at the command line's
+#: peak: the resampling's float32 coordinates (8), then the closing line's check of the lines
+#: through the placed map (float64 [lon, lat], 16, and its intermediates). Measured with
+#: bench/bench_limits.py pixels: 42 bytes per output pixel with the RGB pixel, 12000 x 6000
+#: against 12000 to 6000 wide (bench/RESULTS.md, "Limits (issue 35)").
+WARP_BYTES_PER_PIXEL = 40
 #: Copies of the input image a warp holds at its peak: the image, and the padded copy being made
 #: (:func:`omniwidget.raster.warping.pad_panorama` concatenates rows, then columns).
 WARP_INPUT_COPIES = 3
@@ -673,9 +675,12 @@ def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: in
     turned into RGB, or the EXIF orientation applied): ``file + 2 * decode_bytes(path)``. A
     warp holds :data:`WARP_INPUT_COPIES` copies of the input (it, and its padded copy being
     made) and per output pixel :data:`WARP_BYTES_PER_PIXEL` bytes of working arrays besides
-    the output pixel itself: ``3 * decode_bytes + W_out * W_out / 2 * (80 + bytes_per_pixel)``.
-    The figures were measured on the command line's peak (``ru_maxrss``, bench/RESULTS.md,
-    "Limits (issue 35)"); the Python process itself (about 150 MB) is not counted.
+    the output pixel itself: ``3 * decode_bytes + W_out * W_out / 2 * (40 + bytes_per_pixel)``.
+    The figures were measured on the command line's peak (bench/RESULTS.md, "Limits (issue
+    35)"): the estimate is 7 to 15% above it for warps to the input's width from 2048 to
+    12000 (the three copies of the input and the per-pixel arrays are not all held at
+    once), up to 50% above for a warp to half the width; the Python process itself (about
+    150 MB) is not counted.
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """The method's caps: samples, mesh vertices and weights, so that no handles document exhausts the machine.
 
 The bounded biharmonic weights cost memory and time in proportion to their count, mesh
-vertices times controls: about 50 bytes and 7 to 19 µs each (bench/bench_limits.py,
+vertices times controls: about 50 bytes and 2 to 7 µs each (bench/bench_limits.py,
 bench/RESULTS.md "Limits (issue 35)"). Each cap refuses, before the work, with a
 :class:`~omniwidget.errors.HandlesError` that names the cap, what reached it and the
 environment variable that raises it (``OMNIWIDGET_MAX_<NAME>``, read by
@@ -25,7 +25,8 @@ MAX_SAMPLES = 1000
 MAX_MESH_VERTICES = 200_000
 #: The most weights (mesh vertices times controls) the bounded biharmonic solve may have:
 #: ``OMNIWIDGET_MAX_WEIGHTS`` raises it. 1,000 point handles are 21 million (1.2 GB and 154 s
-#: on a loaded machine), 300 crossing lines 12 million (0.85 GB, 234 s).
+#: on a loaded machine), 300 crossing lines 12.5 million (0.81 GB, 36 s); at the cap a solve
+#: takes at most about 1.7 GB.
 MAX_WEIGHTS = 30_000_000
 
 
@@ -75,7 +76,7 @@ def check_weights(vertices: int, controls: int) -> None:
         raise HandlesError(
             "handles",
             f"the weights to solve are at least {vertices:,} mesh vertices x {controls:,} controls = {size / 1e6:.0f} million, "
-            f"more than the limit of {cap / 1e6:.0f} million (MAX_WEIGHTS: about 50 bytes and 10 µs each, "
+            f"more than the limit of {cap / 1e6:.0f} million (MAX_WEIGHTS: about 50 bytes and 2 to 7 µs each, "
             f"{size * 50 / 1e9:.1f} GB here); use fewer handles (a line crossing others is cut into more controls), or set "
             f"OMNIWIDGET_MAX_WEIGHTS={size} to allow them",
         )
