@@ -624,6 +624,14 @@ def image_header(path: str | os.PathLike[str]) -> ImageHeader | None:
     return ImageHeader(kind, found[0], found[1], size, offset)
 
 
+def _known_header(path: str | os.PathLike[str]) -> ImageHeader:
+    """:func:`image_header`, or an ImageError when the format's header does not say the size."""
+    header = image_header(path)
+    if header is None:
+        raise ImageError(f"{path}: the size of the image cannot be told before decoding it (PNG, JPEG, TIFF, WebP, BMP and .npy can)")
+    return header
+
+
 def decode_bytes(path: str | os.PathLike[str]) -> int:
     """Bytes of the array :func:`read_image` returns for ``path``, told from the file's header before decoding.
 
@@ -646,10 +654,7 @@ def decode_bytes(path: str | os.PathLike[str]) -> int:
     ImageError
         If the file cannot be read, or its format's header does not say (:func:`image_header`).
     """
-    header = image_header(path)
-    if header is None:
-        raise ImageError(f"{path}: the size of the image cannot be told before decoding it (PNG, JPEG, TIFF, WebP, BMP and .npy can)")
-    return header.nbytes
+    return _known_header(path).nbytes
 
 
 def _warp_output(header: ImageHeader, width: int | None) -> tuple[int, int]:
@@ -699,10 +704,7 @@ def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: in
     ImageError
         As :func:`decode_bytes`.
     """
-    header = image_header(path)
-    if header is None:
-        raise ImageError(f"{path}: the size of the image cannot be told before decoding it (PNG, JPEG, TIFF, WebP, BMP and .npy can)")
-    return _needed(header, warp=warp, width=width)
+    return _needed(_known_header(path), warp=warp, width=width)
 
 
 def _meminfo(name: str) -> int | None:
@@ -798,9 +800,7 @@ def _refusal(path: Path, header: ImageHeader, need: int, have: int, *, warp: boo
             f"try a smaller width (--width; a warp takes about {WARP_BYTES_PER_PIXEL + header.bytes_per_pixel} bytes per output pixel), "
             + how
         )
-    return ImageError(
-        f"{path}: {header.describe()}; {what} needs about {_gigabytes(need)} and {_gigabytes(have)} is available: {how}"
-    )
+    return ImageError(f"{path}: {header.describe()}; {what} needs about {_gigabytes(need)} and {_gigabytes(have)} is available: {how}")
 
 
 def check_fits(path: str | os.PathLike[str], *, warp: bool = False, width: int | None = None) -> ImageHeader | None:
