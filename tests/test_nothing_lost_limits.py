@@ -384,3 +384,15 @@ def test_1000_crossing_lines_are_refused_by_the_weights_cap(tmp_path: Path) -> N
     write_image(image, np.zeros((256, 512, 3), np.uint8))
     run = _cli("warp", str(image), "-H", str(lines), "-o", str(tmp_path / "out.png"), timeout=120, memory=ULIMIT)
     _one_line_refusal(run, "more than the limit of 30 million (MAX_WEIGHTS", "OMNIWIDGET_MAX_WEIGHTS=")
+
+
+def test_a_fifo_is_refused_as_a_video_too(tmp_path: Path) -> None:
+    from omniwidget.errors import VideoError
+    from omniwidget.io.spherical import check_mp4_structure, read_spherical
+
+    fifo = tmp_path / "video.mp4"
+    os.mkfifo(fifo)
+    with pytest.raises(VideoError, match="video.mp4: cannot read the video: it is a FIFO"):
+        read_spherical(fifo)
+    with pytest.raises(VideoError, match="it is a FIFO"):
+        check_mp4_structure(fifo)

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from ..errors import VideoError
+from .._checks import require_regular_file
+from ..errors import NotRegularFileError, VideoError
 
 __all__ = ["EQUIRECTANGULAR", "Spherical", "check_mp4_structure", "read_spherical", "spherical_boxes", "write_spherical"]
 
@@ -173,8 +174,17 @@ def _top_level(path: Path) -> tuple[list[_Box], int]:
     return boxes, size
 
 
+def _regular(path: Path) -> None:
+    """A VideoError for a FIFO or a device, which opening would wait on or never finish reading."""
+    try:
+        require_regular_file(path, "video")
+    except NotRegularFileError as exc:
+        raise VideoError(str(exc)) from None
+
+
 def _read_moov(path: Path) -> tuple[list[_Box], _Box, bytes] | None:
     """The top-level boxes, ``moov`` and its bytes; None when the file is no MP4/QuickTime file or has no ``moov``."""
+    _regular(path)
     with path.open("rb") as fh:
         head = fh.read(12)
     if len(head) < 8 or head[4:8] not in (b"ftyp", b"moov", b"mdat", b"free", b"wide", b"skip", b"pnot", b"uuid"):
@@ -200,6 +210,7 @@ def check_mp4_structure(path: str | os.PathLike[str]) -> None:
         Saying which box is cut short, without the file name (the caller adds it).
     """
     path = Path(path)
+    _regular(path)
     with path.open("rb") as fh:
         head = fh.read(12)
     if len(head) >= 8 and head[4:8] in (b"ftyp", b"moov", b"mdat"):
@@ -280,7 +291,7 @@ def read_spherical(path: str | os.PathLike[str]) -> Spherical | None:
     Raises
     ------
     VideoError
-        If the file's boxes are cut short or overlap.
+        If the file's boxes are cut short or overlap, or it is a FIFO or a device.
     OSError
         If it cannot be read.
     """
