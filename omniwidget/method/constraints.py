@@ -198,7 +198,7 @@ def _crossing_candidates(pieces: list[_Piece], i: int) -> NDArray[np.intp]:
         inside_b = (np.einsum("ij,ij->i", np.cross(b0, x), nb) > limit_b) & (np.einsum("ij,ij->i", np.cross(x, b1), nb) > limit_b)
         may |= inside_a & inside_b
     targets = np.array([p.line.targets is not None for p in rest])
-    return np.flatnonzero(may & (norm >= 1e-12 * 0.5) & ~targets) + i + 1
+    return np.flatnonzero(may & (norm >= 0.5e-12) & ~targets) + i + 1  # arc_crossing: none below 1e-12
 
 
 def _joints(pieces: list[_Piece], distance: float) -> dict[tuple[int, int], int]:
