@@ -618,8 +618,8 @@ def secure_numba_cache(namespace: dict[str, Any]) -> None:
     """Keep numba's cache of the kernels in ``namespace`` in a folder of the user's own, as the stored kernels are.
 
     Numba unpickles its index files (``.nbi``), and unpickling can run any code, so its cache
-    folder must be no one else's either. Called by :mod:`omniwidget._numba_kernels` once its
-    kernels are defined, before any of them runs (numba reads its cache at a kernel's first
+    folder must be no one else's either. Called on the kernels of :mod:`omniwidget._numba_kernels`
+    when this module first imports them, before any of them runs (numba reads its cache at a kernel's first
     call). When the folder numba chose (``NUMBA_CACHE_DIR``, the package's ``__pycache__`` or
     numba's user cache), a folder above it or one of the kernels' files there is not ours (the
     rule of :func:`_distrust`), the kernels are cached in ``omniwidget/numba`` of the user's
@@ -683,6 +683,17 @@ class _quiet:
         return False
 
 
+def _numba_module() -> Any:
+    """:mod:`omniwidget._numba_kernels`, its numba cache made safe (:func:`secure_numba_cache`) before any kernel of it runs."""
+    with _lock:
+        from . import _numba_kernels
+
+        if not _state.get("numba cache checked"):
+            secure_numba_cache(vars(_numba_kernels))
+            _state["numba cache checked"] = True
+    return _numba_kernels
+
+
 class _Kernel:
     """One kernel of :mod:`omniwidget._numba_kernels`: its stored native code when it fits, else numba's dispatch."""
 
@@ -703,9 +714,7 @@ class _Kernel:
         if plain and enabled() and key not in self._checked and _MODULE not in sys.modules:
             with _lock, _quiet():
                 _stamp()  # the kernels' source as numba is about to read it (a later edit is not built)
-        from . import _numba_kernels
-
-        dispatcher = getattr(_numba_kernels, self.__name__)
+        dispatcher = getattr(_numba_module(), self.__name__)
         dispatcher(*args)
         if key is not None and plain and enabled() and key not in self._checked:
             self._store(dispatcher, key)

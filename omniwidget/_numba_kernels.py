@@ -5,7 +5,8 @@ in every new process: a kernel is compiled once per installation and signature, 
 per process, and its cache files are rewritten in place rather than added to. Where the
 package's own folder cannot be written (a read-only site-packages), numba keeps the cache
 in the user's cache folder instead (or in ``NUMBA_CACHE_DIR``); and in omniwidget's own
-user cache when that folder is not the user's alone (:func:`omniwidget._native.secure_numba_cache`:
+user cache when that folder is not the user's alone (:func:`omniwidget._native.secure_numba_cache`,
+which :mod:`omniwidget._native` calls when it imports this module, before any kernel runs:
 numba unpickles its index files). Importing this module
 imports numba; nothing else in omniwidget does (but :mod:`omniwidget._native` when it
 compiles a kernel's native copy, in a process that has just run it through numba). No
@@ -18,8 +19,6 @@ from __future__ import annotations
 import math
 
 from numba import njit
-
-from ._native import secure_numba_cache
 
 #: Weights at most this are skipped (the numpy path skips a control only where it is below
 #: :data:`omniwidget.raster.blend.NEGLIGIBLE` over a whole block of rows; both are far below
@@ -311,5 +310,3 @@ def split_rows(r0, r1, face, planes, corners, weights, mats, slot, cos_lon, sin_
             fixed[r, c, 1] = sum_i
             fixed[r, c, 2] = sum_z
 
-
-secure_numba_cache(globals())  # numba reads its cache at a kernel's first call: only from a folder of ours

@@ -215,6 +215,10 @@ def test_a_huge_npy_header_is_refused_by_name_before_any_allocation(tmp_path: Pa
     (tmp_path / "h.json").write_text(json.dumps(POINT))
     run = _cli("warp", str(huge), "-H", str(tmp_path / "h.json"), "-o", str(tmp_path / "out.png"), memory=ULIMIT)
     _one_line_refusal(run, str(huge), "(100000, 200000, 2) float32")
+    # and as the map a warp applies (--apply-map), where it said "not enough memory" without naming the file
+    write_image(tmp_path / "in.png", np.zeros((8, 16, 3), np.uint8))
+    run = _cli("warp", str(tmp_path / "in.png"), "--apply-map", str(huge), "-o", str(tmp_path / "out.png"), memory=ULIMIT)
+    _one_line_refusal(run, str(huge), "(100000, 200000, 2) float32")
 
 
 def test_a_npy_file_shorter_than_its_header_says_is_refused_as_truncated(tmp_path: Path) -> None:

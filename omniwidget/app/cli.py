@@ -333,7 +333,7 @@ def _warp_one(args: argparse.Namespace) -> None:
     _check_output(args.output, _IMAGE_SUFFIXES, "output image")
     _refuse_overwrites(args, [("-o", args.output), ("--map", args.map)])
     handles = load_handles(args.handles)
-    image = read_panorama(source, args.fit)
+    image = read_panorama(source, args.fit, width=args.width, warp=True)  # refused before decoding if the warp cannot fit
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
     result, outputs = _warped_outputs(args, image, handles)
     for path, data in outputs:
@@ -400,7 +400,7 @@ def _warp_frames(args: argparse.Namespace) -> None:
     outputs = _frame_outputs(args)
     handles = load_handles(args.handles) if args.handles is not None else None
     saved = load_map(args.apply_map) if args.apply_map is not None else None
-    first = read_panorama(args.input[0], args.fit)
+    first = read_panorama(args.input[0], args.fit, width=args.width, warp=True)
     check_format(outputs[0], first[:0])  # the folder may not exist yet
     start = time.perf_counter()
     result: Result | None = None
@@ -631,7 +631,7 @@ def _cmd_level(args: argparse.Namespace) -> None:
     _refuse_overwrites(args, [("-o", args.output), ("--map", args.map), ("-H", args.handles)])
     if args.width is not None and (args.width < 2 or args.width % 2):
         raise ImageError(f"--width {args.width}: the width must be even and at least 2")
-    image = read_panorama(args.input, args.fit)
+    image = read_panorama(args.input, args.fit, width=args.width, warp=True)
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
     found = level(image)  # too few vertical edges: a LevelError, one line, nothing written
     handles = found.handles()

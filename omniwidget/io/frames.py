@@ -24,7 +24,7 @@ from .._files import refuse_overwrites, remove_leftovers
 from ..errors import ImageError, OmniwidgetError
 from ..raster.warping import ORDERS, PAD, Order, pad_panorama, remap
 from ..sphere import coords
-from .images import Fit, read_panorama, write_image
+from .images import Fit, check_fits, read_panorama, write_image
 
 __all__ = ["FrameReport", "load_map", "map_coordinates", "warp_frames"]
 
@@ -85,6 +85,8 @@ def load_map(path: str | os.PathLike[str]) -> NDArray[np.float32]:
         If the file cannot be read or does not hold such a map.
     """
     path = Path(path)
+    if path.exists():  # a header that declares more than memory holds is refused by name, before anything is allocated
+        check_fits(path)
     try:
         m = np.load(path, allow_pickle=False)
     except (OSError, ValueError) as exc:
