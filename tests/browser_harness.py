@@ -196,6 +196,14 @@ ALLOWED_CONSOLE_ERRORS: tuple[tuple[str, str], ...] = ()
 # --------------------------------------------------------------------------- prerequisites
 
 
+def one_front_end(server: Any, what: str) -> None:
+    """Skip in Notebook 7 a check that JupyterLab makes as well: the front ends share the widget's code (anywidget), and
+    both run the checks where they differ (drawing and undo, the keys, a kernel's restart, the reach ring).
+    CI's 30 minutes hold only so."""
+    if server.frontend.key != "lab":
+        pytest.skip(f"one front end is enough for {what}: JupyterLab")
+
+
 def require_browser(*frontends: str) -> None:
     """Skip the calling test unless a real-browser run is possible.
 

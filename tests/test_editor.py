@@ -687,15 +687,15 @@ ed.rectify_all()
 """
 
 
-@pytest.mark.slow  # 20 fresh processes (23 s on a busy 2-core machine): the full suite; the fast loop runs 1 (below)
+@pytest.mark.slow  # 8 fresh processes (about 20 s on a busy 2-core machine): the full suite; the fast loop runs 1 (below)
 def test_a_process_that_ends_while_a_preview_computes_exits_cleanly():
     """Issue 18, part 6: the script exits right after asking for a preview; the worker is stopped, never cut off inside
     compiled code (it aborted with "FATAL: exception not rethrown" in 1 run of 12)."""
-    _check_exits_cleanly(20)
+    _check_exits_cleanly(8)
 
 
 def test_a_process_that_ends_while_a_preview_computes_exits_cleanly_once():
-    """The fast loop's twin: 1 run (the race was seen in 1 run of 12, so this one is a smoke check; CI runs 20)."""
+    """The fast loop's twin: 1 run (the race was seen in 1 run of 12, so this one is a smoke check; CI runs 8)."""
     _check_exits_cleanly(1)
 
 

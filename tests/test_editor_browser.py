@@ -270,6 +270,7 @@ def pane_pixels(nb, handle: int) -> np.ndarray:
 
 def test_weights_pane_renders_rotates_and_follows_the_selection(jupyter_server, browser):
     """Issue 6: the pyvista pane's html backend draws the mesh in a WebGL canvas; clicking a handle in the editor recolours it."""
+    bh.one_front_end(jupyter_server, "the weights pane")
     bh.write_notebook(jupyter_server.root / "pane.ipynb", PANE_NOTEBOOK)
     requests: list[str] = []
     with bh.NotebookPage(browser, jupyter_server, "pane.ipynb") as nb:
@@ -494,6 +495,7 @@ def _editor_with(jupyter_server, browser, name: str, handle: dict, what: str):
 
 def test_an_arrow_tip_dragged_to_scale_2_magnifies_the_result_2x_at_the_point(jupyter_server, browser):
     """A point's east arrow tip dragged (transform stage) to where scale 2 puts it: the handle zooms 2x, and so does the result."""
+    bh.one_front_end(jupyter_server, "the arrow tip's zoom")
     point = {"kind": "point", "position": [100.0, -10.0]}
     with _editor_with(jupyter_server, browser, "arrow", point, "the result with the line and the point") as (nb, client, _):
         page = nb.page
@@ -533,6 +535,7 @@ CAGE = {"kind": "cage", "vertices": [[-70.0, -5.0], [-30.0, -5.0], [-30.0, -45.0
 
 def test_a_large_cage_dragged_carries_its_inside_rigidly(jupyter_server, browser):
     """A 40° cage (with a rectified line elsewhere) dragged by its edge in the transform stage: its inside moves as the cage does."""
+    bh.one_front_end(jupyter_server, "the large cage")
     with _editor_with(jupyter_server, browser, "cage", CAGE, "the result with the line and the cage") as (nb, client, _):
         page = nb.page
         nb.output('[data-stage="transform"]').click()
@@ -578,6 +581,7 @@ def kept_pattern(pane: Pane, shot: np.ndarray) -> np.ndarray:
 
 def test_a_line_over_the_pole_is_kept_drawn_dashed_and_its_warning_shows_on_hover(jupyter_server, browser):
     """With the still background a rectified line over the pole is kept as it is: listed, drawn dash-dot in green, explained on hover."""
+    bh.one_front_end(jupyter_server, "the line over the pole")
     with _editor_with(jupyter_server, browser, "pole", POLE_LINE, "the result with the pole line") as (nb, client, _):
         page = nb.page
         status = kernel_json(client, "ed.status")
@@ -620,6 +624,7 @@ SAVE_IMAGE_NOTEBOOK = [
 
 
 def test_save_image_writes_the_full_size_result_and_downloads_it(jupyter_server, browser):
+    bh.one_front_end(jupyter_server, "Save image")
     from omniwidget.raster import pipeline
 
     folder = jupyter_server.root / "save_image"

@@ -34,7 +34,7 @@ from omniwidget.raster.pipeline import warp
 from omniwidget.sphere import coords
 
 #: Generated cases per run: valid documents warped, broken documents refused.
-FUZZ_CASES = {k: n * int(os.environ.get("OMNIWIDGET_FUZZ", "1")) for k, n in {"valid": 500, "broken": 2000}.items()}
+FUZZ_CASES = {k: n * int(os.environ.get("OMNIWIDGET_FUZZ", "1")) for k, n in {"valid": 150, "broken": 2000}.items()}
 WIDTH = 64
 
 #: Reproducible: derandomize and database come from the loaded profile (conftest.py), not from here.

@@ -463,7 +463,7 @@ def test_the_other_fuzzers_documents_agree_too(data):
 
 
 @pytest.mark.slow  # a longer hunt: the fast loop runs the same checks on fewer documents
-@settings(_FUZZ, max_examples=3000 * FUZZ)
+@settings(_FUZZ, max_examples=1000 * FUZZ)
 @given(st.one_of(mutated_documents(), loose_documents, valid_documents, st.builds(lambda case: case[0], broken_documents()), json_values))
 def test_many_fuzzed_documents_agree(data):
     _check_fuzzed(data)

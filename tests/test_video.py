@@ -571,7 +571,7 @@ def test_ctrl_c_leaves_no_partial_output(tmp_path):
     while time.monotonic() < deadline and process.poll() is None:
         parts = list(tmp_path.glob(".out.mp4.*.part"))
         size = parts[0].stat().st_size if parts else 0
-        if size > 50_000:  # encoded frames are in it
+        if size > 4096:  # encoded frames are in it (past the container's header: 50 kB was sometimes reached only at the end)
             break
         time.sleep(0.01)
     assert process.poll() is None, f"the warp ended before it could be interrupted: {process.communicate()}"
@@ -579,4 +579,4 @@ def test_ctrl_c_leaves_no_partial_output(tmp_path):
     stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 130, stderr
     assert stderr.strip().splitlines()[-1] == "omniwidget warp: interrupted", stderr
-    assert size > 50_000 and not out.exists() and _leftovers(tmp_path) == [], sorted(p.name for p in tmp_path.iterdir())
+    assert size > 4096 and not out.exists() and _leftovers(tmp_path) == [], sorted(p.name for p in tmp_path.iterdir())
