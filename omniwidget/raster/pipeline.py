@@ -29,7 +29,7 @@ from ..method.locate import interpolate, locate_grid, locate_points
 from ..sphere import coords
 from ..sphere.moebius import Moebius
 from . import _kernels
-from .blend import blended_inverse, mesh_pixel_weights
+from .blend import blended_inverse, mesh_blended_inverse, mesh_pixel_weights
 from .fold import FoldOver, fold_of_coordinates
 from .sampled import coarse_step, sampled_coordinates
 from .untangle import Patch, apply_patches, line_mask, line_pixels, patched_inverse, untangle
@@ -200,7 +200,7 @@ def _exact_inverse(
         with lock:
             if not cache:
                 face, bary = locate_grid(vertices, faces, width)
-                cache.append(blended_inverse(inverses, mesh_pixel_weights(faces, weights, face, bary, np.float64), precision="double"))
+                cache.append(mesh_blended_inverse(inverses, faces, weights, face, bary))
         return cache[0](lon, lat, rows)
 
     return fn
