@@ -207,10 +207,10 @@ def mesh_blended_inverse(
                 wj += b[..., 1] * weights[corner[..., 1], j]
                 wj += b[..., 2] * weights[corner[..., 2], j]
                 boxes[j].append((box, wj))
-        for j, m in enumerate(inverses):
-            if not max((float(wj.max()) for _, wj in boxes[j]), default=0.0) > NEGLIGIBLE:
+        for control, m in enumerate(inverses):
+            if not max((float(wj.max()) for _, wj in boxes[control]), default=0.0) > NEGLIGIBLE:
                 continue  # as blended_inverse skips it over this block
-            for box, wj in boxes[j]:
+            for box, wj in boxes[control]:
                 big_u, big_v = grid_homogeneous(m, lon[box[1]], lat[box[0]], "double")
                 uu = big_u.real**2 + big_u.imag**2
                 vv = big_v.real**2 + big_v.imag**2
