@@ -494,7 +494,13 @@ function onImage(ed, name) {
   state.decoding[name] = (async () => {
     state[name] = await decode(ed.model.get(name), name === "folds" ? "image/png" : "image/jpeg");
     if (name === "source" && state.source && ed.live) ed.live.setSource(state.source);
-    if (name === "preview") state.liveShown = false; // the kernel's result replaces the live frame
+    if (name === "preview") {
+      const d = state.drag;
+      // A solve of where the drag was, not where the mouse is now: the live frame goes on (and
+      // the rest asks again); otherwise the kernel's result replaces the live frame.
+      if (d && d.type === "move" && d.pane === "result" && d.moved && d.solvedAt !== JSON.stringify(d.points)) liveFrame(ed, d);
+      else state.liveShown = false;
+    }
     if (name === "source" && !state.view) layout(ed);
     draw(ed);
   })();
@@ -599,6 +605,7 @@ function solveDuringDrag(ed, d) {
   if (status(ed).state === "busy" || state.pendingCount > 0) return;
   state.dragSolve = performance.now();
   d.solved = true;
+  d.solvedAt = JSON.stringify(d.points);
   ed.model.send({ op: "drag", handles: moveOnResult(doc(ed), d.index, d.part, d.points) });
 }
 
@@ -1025,6 +1032,7 @@ function onDown(ed, p, e) {
     points: pts.map((q) => [...q]),
     moved: false,
     solved: false,
+    solvedAt: "",
   };
   state.drag = drag;
   if (p.kind === "result") requestLive(ed, found.index);

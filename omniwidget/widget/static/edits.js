@@ -22,6 +22,7 @@ import { carry, DEG, distance, midpoint, mirror } from "./sphere.js";
  * @property {LonLat[]} points its control points now
  * @property {boolean} moved whether the pointer has moved since it went down
  * @property {boolean} solved whether the kernel has solved the handles during the drag
+ * @property {string} solvedAt the points (as JSON) of the last solve sent during the drag, "" if none
  */
 
 /** Degrees: shorter drags make no line. */
