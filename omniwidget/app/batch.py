@@ -355,13 +355,13 @@ def _coordinates(recipe: _Recipe, src_width: int) -> tuple[NDArray[np.float32], 
 def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[float, float, tuple[str, ...]]:
     """Read ``src``, warp it, write ``dst`` whole; ``(seconds, map seconds, warnings)``. Raises on any failure."""
     from ..io.images import read_panorama, write_image
-    from ..raster.warping import pad_panorama, remap
+    from ..raster.warping import remap_panorama
 
     start = time.perf_counter()
     source, target = Path(src), Path(dst)
     frame = read_panorama(source, recipe.fit)
     coordinates, warnings, map_seconds = _coordinates(recipe, frame.shape[1])
-    out = remap(pad_panorama(frame), coordinates, recipe.order)
+    out = remap_panorama(frame, coordinates, recipe.order)
     if make_folder:
         target.parent.mkdir(exist_ok=True)
     write_image(target, out)  # what a killed attempt left beside it is removed first (omniwidget._files)

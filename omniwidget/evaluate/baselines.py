@@ -63,8 +63,7 @@ from ..raster.warping import (
     grid_inverse,
     homogeneous_to_lonlat,
     inverse_lonlat,
-    pad_panorama,
-    remap,
+    remap_panorama,
     warp_moebius,
 )
 from ..sphere import coords
@@ -215,7 +214,7 @@ def _finish(
     now = time.perf_counter()
     timings["blend"], clock = now - clock, now
     coordinates = (coords.lonlat_to_px(inverse_map, image.shape[1]) + PAD).astype(np.float32)
-    out = remap(pad_panorama(image), coordinates, order)
+    out = remap_panorama(image, coordinates, order)
     now = time.perf_counter()
     timings["resampling"], clock = now - clock, now
     folds = fold_over(inverse_map)
@@ -704,7 +703,7 @@ def perspective(image: NDArray, center: ArrayLike, fov: float, width: int, heigh
     rays = focal * forward + x[None, :, None] * east - y[:, None, None] * north
     lonlat = coords.xyz_to_lonlat(rays)
     coordinates = (coords.lonlat_to_px(lonlat, image.shape[1]) + PAD).astype(np.float32)
-    out = remap(pad_panorama(image), coordinates, order)
+    out = remap_panorama(image, coordinates, order)
     lonlat.flags.writeable = False
     return PerspectiveView(out, lonlat, centre, float(fov))
 

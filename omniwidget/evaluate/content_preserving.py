@@ -51,7 +51,7 @@ from scipy.sparse.linalg import LinearOperator, cg, splu
 
 from .._checks import check_panorama, whole_number
 from ..document.handles import CageHandle, Handles, LineHandle
-from ..raster.warping import ORDERS, PAD, Order, pad_panorama, remap
+from ..raster.warping import ORDERS, PAD, Order, remap_panorama
 from ..sphere import coords
 from .quality import Summary, straightness
 
@@ -1174,7 +1174,7 @@ def render_image(
     clock = time.perf_counter()
     covered = render.mask
     px = coords.lonlat_to_px(np.where(covered[..., None], inverse, 0.0), image.shape[1]) + PAD
-    out = remap(pad_panorama(image), px.astype(np.float32), order)
+    out = remap_panorama(image, px.astype(np.float32), order)
     out[~covered] = 0
     timings["resampling"] = time.perf_counter() - clock
     return out, render, inverse, timings

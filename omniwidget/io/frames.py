@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._files import refuse_overwrites, remove_leftovers
 from ..errors import ImageError, OmniwidgetError
-from ..raster.warping import ORDERS, PAD, Order, pad_panorama, remap
+from ..raster.warping import ORDERS, PAD, Order, remap_panorama
 from ..sphere import coords
 from .images import Fit, check_fits, read_panorama, write_image
 
@@ -42,7 +42,7 @@ def _checked_map(inverse_map: ArrayLike) -> NDArray[np.floating]:
 
 
 def map_coordinates(inverse_map: ArrayLike, src_width: int) -> NDArray[np.float32]:
-    """Source pixel coordinates of an inverse map, ready for :func:`~omniwidget.raster.warping.remap`.
+    """Source pixel coordinates of an inverse map, ready for :func:`~omniwidget.raster.warping.remap_panorama`.
 
     Parameters
     ----------
@@ -181,10 +181,10 @@ def warp_frames(
     def one(pair: tuple[Path, Path]) -> str | None:
         src, dst = pair
         try:
-            frame = read_panorama(src, fit)
+            frame = read_panorama(src, fit, width=src_shape[1])  # a JPEG decoded reduced as the first frame was
             if frame.shape[:2] != tuple(src_shape):
                 raise ImageError(f"{src}: the frame is {frame.shape[1]} x {frame.shape[0]}, the map is for {src_shape[1]} x {src_shape[0]}")
-            write_image(dst, remap(pad_panorama(frame), coordinates, order))
+            write_image(dst, remap_panorama(frame, coordinates, order))
         except (OmniwidgetError, OSError) as exc:
             return str(exc)
         return None

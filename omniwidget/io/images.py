@@ -35,6 +35,7 @@ __all__ = [
     "WARP_BYTES_PER_PIXEL",
     "WARP_INPUT_COPIES",
     "ImageHeader",
+    "asked_reduction",
     "atomic_write_bytes",
     "available_memory",
     "check_fits",
@@ -665,12 +666,44 @@ def _warp_output(header: ImageHeader, width: int | None) -> tuple[int, int]:
 
 def _needed(header: ImageHeader, *, warp: bool, width: int | None, reduce: int = 1) -> int:
     """Peak bytes of reading the image (decoded at ``1 / reduce`` of its size) and, with ``warp``, of warping it."""
+    from ..raster.warping import PAD, PATCH_PIXELS, REMAP_LIMIT
+
     image = header.nbytes // (reduce * reduce)
     reading = header.file_bytes + 2 * image  # the file, the decoded pixels and their copy in RGB order (or turned)
     if not warp:
         return reading
     _, pixels = _warp_output(header, width)
-    return max(reading, WARP_INPUT_COPIES * image + pixels * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel))
+    if max(header.width, header.height) // reduce + 2 * PAD < REMAP_LIMIT:
+        source = WARP_INPUT_COPIES * image
+    else:  # resampled in tiles (remap_panorama): no padded copy, one patch at a time
+        source = image + PATCH_PIXELS * header.bytes_per_pixel
+    return max(reading, source + pixels * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel))
+
+
+def asked_reduction(header: ImageHeader, width: int | None) -> int:
+    """How much a panorama wanted ``width`` wide is reduced as it is decoded: 1, 2, 4 or 8.
+
+    A JPEG at least twice as wide as ``width`` is decoded at 1/2, 1/4 or 1/8 of its size
+    by libjpeg's DCT scaling (an average over each block, so no aliasing), the most that
+    keeps it at least ``width`` wide and 2:1 (both sides divisible); other formats, and a
+    JPEG no wider than twice ``width``, are decoded whole (1).
+
+    Parameters
+    ----------
+    header : ImageHeader
+        From :func:`image_header`.
+    width : int or None
+        The width it is wanted at; None: its own (1).
+
+    Returns
+    -------
+    int
+    """
+    if header.format != "JPEG" or width is None:
+        return 1
+    longer = max(header.width, header.height)  # the panorama's width, whichever way its EXIF orientation turns it
+    whole = [f for f in _REDUCTIONS if header.width % f == 0 and header.height % f == 0 and longer // f >= width]
+    return max(whole, default=1)
 
 
 def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: int | None = None) -> int:
@@ -685,7 +718,10 @@ def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: in
     35)"): the estimate is 7 to 15% above it for warps to the input's width from 2048 to
     12000 (the three copies of the input and the per-pixel arrays are not all held at
     once), up to 50% above for a warp to half the width; the Python process itself (about
-    150 MB) is not counted.
+    150 MB) is not counted. A JPEG is counted at the size it is decoded at for ``width``
+    (:func:`asked_reduction`); a panorama resampled in tiles (32,767 px a side or more,
+    :func:`~omniwidget.raster.warping.remap_panorama`) with one copy of the input and one
+    patch.
 
     Parameters
     ----------
@@ -704,7 +740,8 @@ def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: in
     ImageError
         As :func:`decode_bytes`.
     """
-    return _needed(_known_header(path), warp=warp, width=width)
+    header = _known_header(path)
+    return _needed(header, warp=warp, width=width, reduce=asked_reduction(header, width))
 
 
 def _meminfo(name: str) -> int | None:
@@ -812,7 +849,8 @@ def check_fits(path: str | os.PathLike[str], *, warp: bool = False, width: int |
     warp : bool
         Count a warp of it too (:func:`memory_needed`).
     width : int, optional
-        The warp's output width; default: the panorama's own.
+        The warp's output width; default: the panorama's own. A JPEG is counted at the
+        size it will be decoded at (:func:`asked_reduction`).
 
     Returns
     -------
@@ -832,11 +870,8 @@ def check_fits(path: str | os.PathLike[str], *, warp: bool = False, width: int |
     (512, 1024, 3)
     """
     header = image_header(path)
-    if header is None:
-        return None
-    need, have = _needed(header, warp=warp, width=width), available_memory()
-    if have is not None and need > have:
-        raise _refusal(Path(path), header, need, have, warp=warp, width=width)
+    if header is not None:
+        _reduction(Path(path), header, warp=warp, width=width)
     return header
 
 
@@ -852,11 +887,11 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width:
         Turn the pixels as the file's EXIF orientation says (JPEG, PNG and WebP; OpenCV
         does it for TIFF), so that the array is the picture viewers show.
     width : int, optional
-        The width the image is wanted at (a warp's output width, say). A JPEG too large to
-        decode in the memory available (:func:`check_fits`) but at least twice as wide as
-        this is then decoded at 1/2, 1/4 or 1/8 of its size (libjpeg's DCT scaling, the
-        least reduction that fits and stays at least ``width`` wide) instead of refused.
-        An image that fits is read whole whatever ``width`` says.
+        The width the image is wanted at (a warp's output width, say). A JPEG at least
+        twice as wide is decoded at 1/2, 1/4 or 1/8 of its size (libjpeg's DCT scaling, the
+        most that keeps it at least ``width`` wide: :func:`asked_reduction`): read at the
+        size asked, in less memory and time, and averaged rather than aliased. Other
+        formats are decoded whole.
 
     Returns
     -------
@@ -876,17 +911,14 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width:
 
 
 def _reduction(path: Path, header: ImageHeader | None, *, warp: bool, width: int | None) -> int:
-    """1 when reading (and warping) ``path`` fits in memory, 2, 4 or 8 for a JPEG decoded reduced to fit; else refused."""
-    have = available_memory()
-    if header is None or have is None or (need := _needed(header, warp=warp, width=width)) <= have:
+    """The reduction ``path`` is decoded at (:func:`asked_reduction`), once it fits in memory with it; else refused."""
+    if header is None:
         return 1
-    if header.format == "JPEG" and width is not None:
-        longer = max(header.width, header.height)  # the panorama's width, whichever way its EXIF orientation turns it
-        for factor in _REDUCTIONS:
-            whole = header.width % factor == 0 and header.height % factor == 0  # 2:1 stays 2:1
-            if whole and longer // factor >= width and _needed(header, warp=warp, width=width, reduce=factor) <= have:
-                return factor
-    raise _refusal(path, header, need, have, warp=warp, width=width)
+    reduce = asked_reduction(header, width)
+    have = available_memory()
+    if have is not None and (need := _needed(header, warp=warp, width=width, reduce=reduce)) > have:
+        raise _refusal(path, header, need, have, warp=warp, width=width)
+    return reduce
 
 
 def _read_image(path: Path, *, orientation: bool, width: int | None, warp: bool) -> NDArray:
@@ -974,8 +1006,8 @@ def read_panorama(path: str | os.PathLike[str], fit: Fit | None = None, *, width
     fit : {"pad", "stretch"}, optional
         :func:`to_equirectangular` first; by default an image that is not 2:1 is refused.
     width : int, optional
-        The width it is to be warped to (default: its own). A JPEG that would not fit in
-        memory whole may be decoded reduced (:func:`read_image`).
+        The width it is to be warped to (default: its own): a JPEG at least twice as wide
+        is decoded reduced (:func:`read_image`).
     warp : bool
         Count the memory of a warp to ``width`` too (:func:`memory_needed`), so that a
         panorama whose warp would not fit is refused before it is decoded.

@@ -9,7 +9,7 @@ Needs PyAV (``pip install 'omniwidget[video]'``; its wheels bring FFmpeg's libra
   does: the map is computed once (from the first frame with :func:`~omniwidget.raster.pipeline.warp`,
   or given), turned into source pixel coordinates once
   (:func:`~omniwidget.io.frames.map_coordinates`), and every frame is then only decoded,
-  resampled (:func:`~omniwidget.raster.warping.remap`) and encoded. Time stamps, frame rate and
+  resampled (:func:`~omniwidget.raster.warping.remap_panorama`) and encoded. Time stamps, frame rate and
   duration are kept, audio streams are copied packet for packet (not re-encoded), and the
   spherical metadata is carried over (:mod:`omniwidget.io.spherical`). The output is written
   to a temporary file next to it and renamed at the end: an error, a cancel or Ctrl+C leaves
@@ -43,7 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._files import commit, remove_leftovers, same_file, temporary_file
 from ..errors import VideoError
-from ..raster.warping import ORDERS, Order, pad_panorama, remap
+from ..raster.warping import ORDERS, Order, remap_panorama
 from .frames import map_coordinates
 from .spherical import EQUIRECTANGULAR, Spherical, check_mp4_structure, read_spherical, write_spherical
 
@@ -667,11 +667,11 @@ class _Warper:
             out = av.VideoFrame(self.out_w, self.out_h, self.out_format)
             for k in range(3):
                 coordinates = self.chroma if k and self.chroma is not None else self.luma
-                _plane(out, k, dtype)[...] = remap(pad_panorama(_plane(frame, k, dtype)), coordinates, self.order)
+                _plane(out, k, dtype)[...] = remap_panorama(_plane(frame, k, dtype), coordinates, self.order)
         else:
             rgb_format = "rgb48le" if self.deep else "rgb24"
             rgb = frame.to_ndarray(format=rgb_format, src_color_range=frame.color_range)
-            warped = np.ascontiguousarray(remap(pad_panorama(rgb), self.luma, self.order))
+            warped = np.ascontiguousarray(remap_panorama(rgb, self.luma, self.order))
             out = av.VideoFrame.from_ndarray(warped, format=rgb_format).reformat(
                 format=self.out_format,
                 dst_colorspace=self.color["colorspace"] or None,

@@ -40,9 +40,8 @@ from .warping import (
     coordinates_lonlat,
     grid_inverse,
     inverse_lonlat,
-    pad_panorama,
-    remap,
     remap_coordinates,
+    remap_panorama,
     warp_moebius,
 )
 
@@ -483,7 +482,7 @@ def warp(
             problems += _lines_given_way(handles, lines, patches)
             laps("untangle")
         inverse = patched_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], *mesh, width), patches)
-        out = remap(pad_panorama(image), coordinates, order)
+        out = remap_panorama(image, coordinates, order)
         laps("resampling")
         if at_folds is not None and (patches or folds.area >= FOLD_WARNING_AREA):
             problems.append(_fold_warning(handles, d.controls, at_folds, folds.area, patches, width))

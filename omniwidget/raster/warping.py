@@ -27,6 +27,7 @@ from ..sphere.moebius import Moebius
 
 __all__ = [
     "ORDERS",
+    "REMAP_LIMIT",
     "WarpResult",
     "check_warp_arguments",
     "coordinates_lonlat",
@@ -35,6 +36,7 @@ __all__ = [
     "inverse_lonlat",
     "remap",
     "remap_coordinates",
+    "remap_panorama",
     "warp_by_inverse",
     "warp_moebius",
 ]
@@ -230,8 +232,34 @@ def pad_panorama(image: NDArray, pad: int = PAD) -> NDArray:
     return np.concatenate([rows[:, w - pad :], rows, rows[:, :pad]], axis=1)
 
 
-def remap(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bilinear") -> NDArray:
+#: OpenCV's ``remap`` keeps pixel coordinates in 16 bits: the source and the map must each be
+#: under this many pixels a side (``SHRT_MAX``). Larger ones are resampled in tiles.
+REMAP_LIMIT = 32767
+#: The side of the output tiles the tiled path starts from (each split further while its
+#: source patch is too large).
+REMAP_TILE = 4096
+#: The most source pixels a tile's patch may have (its copy: 200 MB of RGB at 8 bits).
+PATCH_PIXELS = 1 << 26
+#: Source pixels kept around a tile's samples: bicubic reads two beyond, and one for the rounding.
+_MARGIN = 3
+
+#: ``patch(y0, y1, x0, x1)``: rows y0:y1, columns x0:x1 of the padded source (a view or a copy).
+_Patch = Callable[[int, int, int, int], NDArray]
+
+
+def _interpolation(order: str) -> int:
+    import cv2
+
+    if order not in ORDERS:
+        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
+    return int({"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR, "bicubic": cv2.INTER_CUBIC}[order])
+
+
+def remap(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bilinear", *, tile: int | None = None) -> NDArray:
     """Sample a padded panorama at float32 pixel coordinates with OpenCV.
+
+    A source or a map of :data:`REMAP_LIMIT` pixels a side or more, or any ``tile`` given,
+    is resampled by tiles of the output, as :func:`remap_panorama` does.
 
     Parameters
     ----------
@@ -240,24 +268,142 @@ def remap(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bili
     coordinates : ndarray of float32, shape (h, w, 2)
         ``(x, y)`` in the padded image.
     order : {"nearest", "bilinear", "bicubic"}
+    tile : int, optional
+        As for :func:`remap_panorama`.
 
     Returns
     -------
     ndarray, shape (h, w[, C]), the image's dtype
     """
+    interpolation = _interpolation(order)
+    if image.ndim == 3 and image.shape[2] == 2:  # OpenCV samples two channels on a coarser grid (1/32 pixel): one at a time
+        return np.dstack([remap(np.ascontiguousarray(image[..., k]), coordinates, order, tile=tile) for k in range(2)])
+    if tile is None and max(image.shape[:2]) < REMAP_LIMIT and max(coordinates.shape[:2]) < REMAP_LIMIT:
+        return _cv_remap(image, coordinates, interpolation)
+    return _remap_tiles(lambda y0, y1, x0, x1: image[y0:y1, x0:x1], image.shape, coordinates, interpolation, tile)
+
+
+def remap_panorama(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bilinear", *, tile: int | None = None) -> NDArray:
+    """Sample a panorama at float32 pixel coordinates of its padded frame: :func:`remap` of :func:`pad_panorama`.
+
+    Below :data:`REMAP_LIMIT` pixels a side (source and output) it is exactly that: the
+    source padded, then one call of OpenCV's ``remap``. A larger panorama (a stitched one
+    35,000 px wide, say), or any ``tile`` given, is resampled by tiles of the output, each
+    from the patch of the padded source its samples fall in, made from the panorama alone
+    (no padded copy of it): moved by an even number of pixels (an exact float32 subtraction
+    that keeps OpenCV's rounding of halves to even), each tile has the bytes one call would
+    give. A tile whose samples lie on both sides of the ±180° seam is sampled once on each
+    side; a tile whose patch would be :data:`REMAP_LIMIT` pixels a side or
+    :data:`PATCH_PIXELS` pixels or more (near a pole a row spans every longitude) is halved.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W[, C])
+        The panorama, ``W = 2 H``.
+    coordinates : ndarray of float32, shape (h, w, 2)
+        ``(x, y) + PAD``: pixel coordinates in the padded panorama, as
+        :func:`remap_coordinates` gives them.
+    order : {"nearest", "bilinear", "bicubic"}
+    tile : int, optional
+        Resample by output tiles at most this many pixels a side whatever the sizes (the
+        tiled path, for tests); default: one call below :data:`REMAP_LIMIT`, tiles of
+        :data:`REMAP_TILE` above it.
+
+    Returns
+    -------
+    ndarray, shape (h, w[, C]), the image's dtype
+    """
+    interpolation = _interpolation(order)
+    h, w = image.shape[:2]
+    if w % 2 or h < 1:
+        raise ImageError(f"cannot resample a {w} x {h} panorama: its width must be even and its height at least 1")
+    if image.ndim == 3 and image.shape[2] == 2:
+        return np.dstack([remap_panorama(np.ascontiguousarray(image[..., k]), coordinates, order, tile=tile) for k in range(2)])
+    if tile is None and max(h, w) + 2 * PAD < REMAP_LIMIT and max(coordinates.shape[:2]) < REMAP_LIMIT:
+        return _cv_remap(pad_panorama(image), coordinates, interpolation)
+    shape = (h + 2 * PAD, w + 2 * PAD, *image.shape[2:])
+    return _remap_tiles(lambda y0, y1, x0, x1: _padded_patch(image, y0, y1, x0, x1), shape, coordinates, interpolation, tile)
+
+
+def _padded_patch(image: NDArray, y0: int, y1: int, x0: int, x1: int) -> NDArray:
+    """Rows ``y0:y1`` and columns ``x0:x1`` of ``pad_panorama(image)``, from ``image`` alone: a view inside it, else a copy."""
+    h, w = image.shape[:2]
+    if PAD <= y0 and y1 <= h + PAD and PAD <= x0 and x1 <= w + PAD:
+        return image[y0 - PAD : y1 - PAD, x0 - PAD : x1 - PAD]
+    r = (np.arange(y0, y1) - PAD) % (2 * h)
+    over = r >= h  # rows past a pole: the row on the other side, half a turn away
+    rows = np.where(over, 2 * h - 1 - r, r)
+    cols = np.arange(x0, x1) - PAD
+    patch = np.empty((y1 - y0, x1 - x0, *image.shape[2:]), image.dtype)
+    for turned in (False, True):
+        chosen = over == turned
+        if chosen.any():
+            patch[chosen] = image[np.ix_(rows[chosen], (cols + (w // 2 if turned else 0)) % w)]
+    return patch
+
+
+def _cv_remap(image: NDArray, coordinates: NDArray[np.float32], interpolation: int) -> NDArray:
+    """One call of OpenCV's remap (both sides under :data:`REMAP_LIMIT`), the channel axis kept."""
     import cv2
 
-    if order not in ORDERS:
-        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
-    interpolation = {"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR, "bicubic": cv2.INTER_CUBIC}[order]
-    if image.ndim == 3 and image.shape[2] == 2:  # OpenCV samples two channels on a coarser grid (1/32 pixel): one at a time
-        return np.dstack([remap(np.ascontiguousarray(image[..., k]), coordinates, order) for k in range(2)])
     # None is OpenCV's documented empty map2 (one (x, y) map); OpenCV 4's stub wants an array there, 5's does not
     remap_fn: Any = cv2.remap
     out = remap_fn(image, coordinates, None, interpolation, borderMode=cv2.BORDER_REPLICATE)
     if image.ndim == 3 and out.ndim == 2:  # OpenCV drops a single channel axis
         out = out[..., None]
     return out
+
+
+def _remap_tiles(patch: _Patch, shape: tuple[int, ...], coordinates: NDArray[np.float32], interpolation: int, tile: int | None) -> NDArray:
+    """Resample a padded source of ``shape``, read through ``patch``, by tiles of the output (:func:`remap_panorama`)."""
+    side = REMAP_TILE if tile is None else whole_number(tile, "tile", 1)
+    side = min(side, REMAP_LIMIT - 1)
+    h, w = coordinates.shape[:2]
+    out = np.empty((h, w, *shape[2:]), patch(0, 1, 0, 1).dtype)
+    half = PAD + (shape[1] - 2 * PAD) / 2  # samples east of it and west of it lie on either side of the seam
+    todo = [(r, min(r + side, h), c, min(c + side, w)) for r in range(0, h, side) for c in range(0, w, side)]
+    while todo:
+        r0, r1, c0, c1 = todo.pop()
+        at, into = coordinates[r0:r1, c0:c1], out[r0:r1, c0:c1]
+        if _remap_patch(into, patch, shape, at, interpolation, None):
+            continue
+        east = at[..., 0] >= half
+        if east.any() and not east.all():
+            if _remap_patch(into, patch, shape, at, interpolation, ~east) and _remap_patch(into, patch, shape, at, interpolation, east):
+                continue
+        if r1 - r0 >= c1 - c0:
+            mid = (r0 + r1) // 2
+            todo += [(r0, mid, c0, c1), (mid, r1, c0, c1)]
+        else:
+            mid = (c0 + c1) // 2
+            todo += [(r0, r1, c0, mid), (r0, r1, mid, c1)]
+    return out
+
+
+def _remap_patch(
+    out: NDArray, patch: _Patch, shape: tuple[int, ...], at: NDArray[np.float32], interpolation: int, where: NDArray[np.bool_] | None
+) -> bool:
+    """Resample the samples ``at`` (those ``where`` says; all if None) into ``out`` from the source patch under them.
+
+    Returns False, writing nothing, when that patch is too large (:func:`remap_panorama`).
+    """
+    chosen = (at if where is None else at[where]).reshape(-1, 2)
+    low = np.floor(np.nanmin(chosen, axis=0)).astype(np.int64) - _MARGIN
+    high = np.ceil(np.nanmax(chosen, axis=0)).astype(np.int64) + _MARGIN + 1
+    # even: OpenCV rounds halves to even, an odd move would change that; samples off the source keep its border
+    x0, y0 = (int(v) for v in np.clip(low, 0, np.array(shape[1::-1]) - 1) & ~1)
+    x1, y1 = max(min(int(high[0]), shape[1]), x0 + 1), max(min(int(high[1]), shape[0]), y0 + 1)
+    if max(x1 - x0, y1 - y0) >= REMAP_LIMIT or (x1 - x0) * (y1 - y0) >= PATCH_PIXELS:
+        return False
+    shifted = at - np.array([x0, y0], np.float32)  # whole pixels off numbers under 2**24: exact in float32
+    if where is not None:
+        shifted[~where] = shifted[where][0]  # the other side's samples: any pixel of this patch, not kept
+    sampled = _cv_remap(patch(y0, y1, x0, x1), shifted, interpolation)
+    if where is None:
+        out[...] = sampled
+    else:
+        out[where] = sampled[where]
+    return True
 
 
 @dataclass(frozen=True, eq=False)
@@ -329,4 +475,4 @@ def check_warp_arguments(image: NDArray, width: int | None, order: str) -> int:
 def warp_by_inverse(image: NDArray, inverse: GridInverse, width: int, order: Order = "bilinear") -> NDArray:
     """Resample ``image`` at the directions an inverse map gives for a ``width`` wide output grid."""
     coordinates = remap_coordinates(inverse, width, image.shape[1], PAD)
-    return remap(pad_panorama(image), coordinates, order)
+    return remap_panorama(image, coordinates, order)

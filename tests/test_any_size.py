@@ -1,0 +1,155 @@
+"""Panoramas of any size (issue 38): the tiled resampling beyond OpenCV's 32,767 pixels.
+
+OpenCV's ``remap`` keeps coordinates in 16 bits and refuses a source or a map of 32,767
+pixels a side or more. ``remap_panorama`` resamples such panoramas by tiles of the output,
+each from the patch of the source its samples fall in (no padded copy of the source). The
+tests check that the tiled path gives the bytes of the one call wherever both can run
+(every order, depth and layout, tiles across the seam and over the poles), then warp a
+generated room wider than the limit.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+
+import omniwidget as ow
+from omniwidget.evaluate.scenes import family_scene
+from omniwidget.io.images import memory_needed
+from omniwidget.raster import warping
+from omniwidget.sphere.moebius import Moebius
+
+
+def _coordinates(width: int, src_width: int) -> np.ndarray:
+    """Source coordinates of a zoom and a turn that carry samples across the seam and over the poles."""
+    m = Moebius.rotation((100.0, 60.0), 2.0) @ Moebius.zoom((175.0, 70.0), 1.7)
+    return warping.remap_coordinates(warping.grid_inverse(m.inverse, "single"), width, src_width)
+
+
+@pytest.fixture(scope="module")
+def room() -> np.ndarray:
+    return family_scene("mixed", 3, width=512)[0].image
+
+
+@pytest.mark.parametrize("layout", ["gray", "two", "rgb", "rgba"])
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+def test_the_tiled_resampling_gives_the_bytes_of_one_call(room, layout, dtype):
+    image = {"gray": room[..., 0], "two": room[..., :2], "rgb": room, "rgba": np.dstack([room, room[..., :1]])}[layout]
+    image = image.astype(dtype) * (257 if dtype == np.uint16 else 1)
+    coordinates = _coordinates(768, image.shape[1])
+    coordinates[5, 7] = (-50.0, 9e4)  # off the source: its border, as OpenCV's one call gives
+    east = coordinates[..., 0] >= warping.PAD + image.shape[1] / 2
+    assert east.any() and not east.all(), "the map must carry samples to both sides of the seam"
+    for order in warping.ORDERS:
+        one_call = warping.remap(warping.pad_panorama(image), coordinates, order)
+        for tile in (300, 37, 4):
+            tiled = warping.remap_panorama(image, coordinates, order, tile=tile)
+            assert tiled.dtype == one_call.dtype and tiled.shape == one_call.shape
+            assert np.array_equal(tiled, one_call), f"{order}, tiles of {tile}: {np.count_nonzero(tiled != one_call)} values differ"
+            assert np.array_equal(warping.remap(warping.pad_panorama(image), coordinates, order, tile=tile), one_call)
+
+
+def test_a_tiny_panorama_and_bad_input(room):
+    tiny = np.arange(2 * 4 * 3, dtype=np.uint8).reshape(2, 4, 3)
+    coordinates = _coordinates(16, 4)
+    for order in warping.ORDERS:
+        assert np.array_equal(
+            warping.remap_panorama(tiny, coordinates, order, tile=3), warping.remap(warping.pad_panorama(tiny), coordinates, order)
+        )
+    with pytest.raises(ow.ImageError, match="width must be even"):
+        warping.remap_panorama(np.zeros((3, 5)), coordinates)
+    with pytest.raises(ValueError, match="order must be one of"):
+        warping.remap_panorama(room, coordinates, "cubic")
+    with pytest.raises(ValueError, match="tile"):
+        warping.remap_panorama(room, coordinates, tile=0)
+
+
+@pytest.mark.slow
+def test_a_panorama_forced_through_the_tiles_warps_to_the_same_bytes(monkeypatch):
+    """8192 px, a document of every kind, in the default mode: with OpenCV's limit lowered to 3000 the warp is tiled."""
+    scene, doc, _ = family_scene("mixed", 5, width=8192)
+    untiled = ow.warp(scene.image, doc)
+    calls: list[int] = []
+    patch = warping._remap_patch
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return patch(*args, **kwargs)
+
+    monkeypatch.setattr(warping, "REMAP_LIMIT", 3000)
+    monkeypatch.setattr(warping, "REMAP_TILE", 1024)
+    monkeypatch.setattr(warping, "_remap_patch", counted)
+    tiled = ow.warp(scene.image, doc)
+    assert len(calls) >= (8192 // 1024) * (4096 // 1024), f"{len(calls)} patches: the warp was not tiled"
+    assert np.array_equal(tiled.image, untiled.image)
+
+
+#: The generated room beyond OpenCV's limit: 34,000 x 17,000, gray (578 MB).
+WIDE = 34_000
+
+
+@pytest.fixture(scope="module")
+def wide_room(tmp_path_factory):
+    """A room rendered at 4096, enlarged to 34,000 px in strips into a memory-mapped .npy, and the same as a JPEG.
+
+    Returns (folder, the 4096 render's green channel, its handles document).
+    """
+    folder = tmp_path_factory.mktemp("wide")
+    scene, doc, _ = family_scene("mixed", 7, width=4096)
+    small = np.ascontiguousarray(scene.image[..., 1])
+    wide = np.lib.format.open_memmap(folder / "wide.npy", mode="w+", dtype=np.uint8, shape=(WIDE // 2, WIDE))
+    strip = 1000  # rows at a time, each from the rows of the render under them (bilinear)
+    x = ((np.arange(WIDE) + 0.5) * small.shape[1] / WIDE - 0.5).astype(np.float32)
+    for r0 in range(0, WIDE // 2, strip):
+        r1 = min(r0 + strip, WIDE // 2)
+        y = ((np.arange(r0, r1) + 0.5) * small.shape[0] / (WIDE // 2) - 0.5).astype(np.float32)
+        for c0 in range(0, WIDE, WIDE // 2):  # OpenCV's own limit on the map's width
+            map_x, map_y = np.meshgrid(x[c0 : c0 + WIDE // 2], y)
+            wide[r0:r1, c0 : c0 + WIDE // 2] = cv2.remap(small, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+    wide.flush()
+    assert cv2.imwrite(str(folder / "wide.jpg"), wide, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    del wide
+    (folder / "h.json").write_text(doc.to_json())
+    return folder, small, doc
+
+
+def _warp_cli(folder, name: str, width: int) -> tuple[np.ndarray, int]:
+    """``omniwidget warp folder/name -H folder/h.json --width width`` in a process of its own: (the output, its peak bytes)."""
+    out = folder / f"{name}-{width}.png"
+    command = [sys.executable, "-m", "omniwidget", "warp", str(folder / name), "-H", str(folder / "h.json"), "-o", str(out)]
+    probe = "import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True); print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)"
+    done = subprocess.run([sys.executable, "-c", probe, *command, "--width", str(width)], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    return cv2.imread(str(out), cv2.IMREAD_UNCHANGED), int(done.stdout) * 1024
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("name", "levels"),
+    # measured 0.083 and 0.82 levels on average: the JPEG's 1/8 DCT scaling averages 8 x 8 blocks where the
+    # bilinear warp of the render keeps its edges (p99 29 levels on the painted lines), and JPEG at quality 95
+    [("wide.npy", 0.2), ("wide.jpg", 1.5)],
+)
+def test_a_panorama_wider_than_opencvs_limit_warps(wide_room, name, levels):
+    """34,000 px, warped by the command line to 4096: the same warp of the 4096 render, within the enlargement's blur.
+
+    The .npy is resampled in tiles, the JPEG read at the size asked (1/8: 4250 px wide);
+    each command's peak memory is measured and within the estimate that refuses what
+    would not fit.
+    """
+    folder, small, doc = wide_room
+    got, peak = _warp_cli(folder, name, 4096)
+    assert got.shape == (2048, 4096)
+    expected = ow.warp(small, doc).image
+    difference = np.abs(got.astype(np.float64) - expected)
+    estimate = memory_needed(folder / name, warp=True, width=4096)
+    print(
+        f"{name} 34,000 px to 4096: mean difference {difference.mean():.3f} levels, p99 {np.percentile(difference, 99):.1f}; "
+        f"peak {peak / 2**20:.0f} MB, estimated {estimate / 2**20:.0f} MB"
+    )
+    assert difference.mean() < levels, f"mean difference {difference.mean():.2f} levels from the warp of the render"
+    assert peak < estimate + 200 * 2**20, f"peak {peak / 2**20:.0f} MB over the estimate {estimate / 2**20:.0f} MB and the process's 200 MB"
