@@ -16,7 +16,7 @@ import pytest
 from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle
 from omniwidget.evaluate.quality import cage_fidelity, point_fidelity, straightness
 from omniwidget.evaluate.scenes import family_scene
-from omniwidget.method.constraints import LINE_TOLERANCE, build_constraints, split_line
+from omniwidget.method.constraints import build_constraints, split_line
 from omniwidget.raster.pipeline import warp
 from omniwidget.sphere import coords
 from omniwidget.sphere.arcs import inside_polygon
@@ -24,6 +24,7 @@ from omniwidget.sphere.moebius import Moebius
 
 W = 2048
 T = np.linspace(0.0, 1.0, 50)
+PIECE_T = np.linspace(0.0, 1.0, 200)
 
 #: The issue's figures are 0.25 px, 1% and 0.1° for points and 0.5 px for cages and lines; the README states
 #: what is measured, and these bounds hold that (at 2048 on the report half's scenes below):
@@ -32,11 +33,20 @@ POINT_EXACT = {"centre_px": 1e-11, "zoom": 1e-13, "rotation": 1e-12}
 #: cages carry or hold their inside exactly on these scenes: 2.1e-13 to 9.4e-13 px measured; bound 10x.
 #: (The report half's worst at 1024, in the README, is 0.08 px, on a scene not run here.)
 CAGE_EXACT_PX = 1e-11
-#: lines, measured densely along their whole arcs through the map that placed the pixels (Result.quality):
-#: up to 0.251 px at 2048 and 0.206 px at 512 on the scenes below (at the constrained samples alone they were
-#: within 0.106 px). The figure does not shrink with the pixel's angle: most of it is the map's interpolation
-#: between pixel centres across the line, where the weights fall fast. Bound 0.35 px at any width, 1.4x.
-LINE_PX = 0.35
+#: lines, measured densely along their whole arcs through the map that placed the pixels (Result.quality): the
+#: report half's worst is 0.28 px at 1024 (bench/RESULTS.md, "Never fold": long 0.28, short 0.19, mixed 0.18; the
+#: README: "about 0.1-0.25 px"); up to 0.251 px at 2048 on the scenes below. The figure does not shrink with the
+#: pixel's angle: most of it is the map's interpolation between pixel centres across the line, where the weights
+#: fall fast. Bound 0.30 px at 2048 (1.2x the 0.251 measured, 1.07x the report half's worst); the fast twin at 512
+#: measures up to 0.138 px (long 1; short 1: 0.102) and is bound at 1.2x that, LINE_PX_512.
+LINE_PX = 0.30
+LINE_PX_512 = 0.165
+#: lines at their constrained samples, where the weights are 1: each piece's own map along its part of the line
+#: (the README: "every line within 0.05 px of straight at its constrained samples", at 1024; the report half's
+#: worst is 0.053 px, long 5, and 0.054 on room_edges). Bound 0.055 px at 1024, the claim at rounding level,
+#: scaled to the width (the figure is an angle: 0.0405 px for long 1 at 1024, 0.0202 at 512). Pieces cut to
+#: LINE_TOLERANCE 0.027° instead of 0.02 give 0.061 px for long 1 at 1024 (0.0306 at 512): caught.
+LINE_SAMPLES_PX_1024 = 0.055
 
 
 def _warp(image, handles):
@@ -171,10 +181,21 @@ def _check_lines(family: str, seed: int, width: int) -> None:
     result = _warp(scene.image, doc)
     figures = result.quality.lines
     assert len(figures) == len(result.constraints.chains) == len(truth["line_handles"])  # no crossings here: one chain a line
-    for line, blended in zip(truth["lines"], figures, strict=True):
+    bound = LINE_PX_512 if width == 512 else LINE_PX
+    cons = result.constraints
+    for line, blended, chain in zip(truth["lines"], figures, cons.chains, strict=True):
         paper = straightness(LineHandle(line.start, line.end).moebius()(coords.geodesic(line.start, line.end, T)), width, fit="best")
-        print(f"\n{family} {seed} at {width}: a {line.length:.0f}° line: {blended:.3f} px (eq. 4's own map: {paper:.3f} px)")
-        assert blended <= LINE_PX, f"{blended:.3f} px"
+        pieces = np.concatenate(
+            [cons.controls[cons.lines[k][0]].moebius(coords.geodesic(cons.lines[k][1][0], cons.lines[k][1][-1], PIECE_T)) for k in chain]
+        )
+        pieces[:, 0] = np.unwrap(pieces[:, 0], period=360.0)
+        at_samples = straightness(pieces, width, fit="best")
+        print(
+            f"\n{family} {seed} at {width}: a {line.length:.0f}° line: {blended:.3f} px densely, {at_samples:.4f} px at its "
+            f"constrained samples ({len(chain)} pieces; eq. 4's own map: {paper:.3f} px)"
+        )
+        assert blended <= bound, f"{blended:.3f} px"
+        assert at_samples <= LINE_SAMPLES_PX_1024 * width / 1024, f"{at_samples:.4f} px at the constrained samples"
 
 
 def test_a_long_line_is_cut_into_pieces_on_one_straight_segment():
@@ -188,7 +209,8 @@ def test_a_long_line_is_cut_into_pieces_on_one_straight_segment():
     for (_, q, a), (p, _, b) in zip(pieces, pieces[1:], strict=False):
         assert np.allclose(q, p) and coords.angular_distance(a(q), b(p)) < 1e-9
     curve = np.concatenate([m_(coords.geodesic(p, q, np.linspace(0, 1, 100))) for p, q, m_ in pieces])
-    assert straightness(curve, W) <= LINE_TOLERANCE * W / 360 + 1e-9
+    # the README's figure, not the constant: within 0.02° of the segment (0.114 px at 2048); measured 0.0507 px, bound 1.2x
+    assert straightness(curve, W) <= min(0.02 * W / 360, 0.061)
     # a short line is left whole
     assert len(split_line(LineHandle((0.0, 5.0), (10.0, 6.0)).moebius(), (0.0, 5.0), (10.0, 6.0))) == 1
     # the document keeps one line; the constraints carry the pieces as one chain
