@@ -43,6 +43,10 @@ CASES = {
     "arc at 89°": ("north", 89.0, 110.0),
     "arc at -86°": ("south", -86.0, 65.0),
 }
+#: How much the pole line may change the other lines' straightness (measured densely, Result.quality.lines), px at W:
+#: measured 3.0e-3 (floor line), 9.9e-5 (arc at 89°), 1.2e-5 (arc at -86°), 0 (ceiling line); bound 1.2x the worst.
+#: (The README's "to 1e-4 px" was measured before lines were measured densely; the floor line's 3e-3 is what holds now.)
+OTHERS_UNCHANGED_PX = 0.0036
 #: mark_lines seeds of the ordinary lines in each room whose warp folds nothing on its own.
 SEEDS = {"north": 1, "south": 0}
 
@@ -182,8 +186,9 @@ def test_a_line_over_the_camera_among_ordinary_lines(rooms, case):
     assert max(moved) < 0.5, moved
     theirs, alone = straightness_by_handle(result), straightness_by_handle(without)
     assert sorted(theirs) == [*range(len(others)), i] and sorted(alone) == list(range(len(others)))
-    for h in alone:
-        assert abs(theirs[h] - alone[h]) <= 0.1, (h, theirs, alone)
+    changed = max(abs(theirs[h] - alone[h]) for h in alone)
+    print(f"\n{case}: the other lines' straightness changed by up to {changed:.2e} px")
+    assert changed <= OTHERS_UNCHANGED_PX, (theirs, alone)
     # exactly one warning, and it names the pole line
     assert len(messages) == 1 and result.warnings == tuple(messages), messages
     _check_pole_warning(messages, i, where, top)
