@@ -578,7 +578,7 @@ def _raise(exc):
             FloatingPointError("overflow encountered in the blend"),
             "FloatingPointError: overflow encountered in the blend",
         ),
-        (["omniwidget.raster.pipeline.remap"], RuntimeError(), "(RuntimeError)"),
+        (["omniwidget.raster.pipeline.remap_panorama"], RuntimeError(), "(RuntimeError)"),
         (["omniwidget.app.session._jpeg"], ow.ImageError("could not encode the image for display"), "ImageError: could not encode"),
     ],
     ids=["constraints", "mesh", "solver", "blend", "resampling", "display"],
@@ -616,8 +616,8 @@ def test_a_result_that_is_not_finite_is_refused_like_an_error(monkeypatch, where
     assert ed.wait()["state"] == "idle"
     shown = ed.preview
     if where == "image":
-        real = pipeline.remap
-        monkeypatch.setattr(pipeline, "remap", lambda *args, **kwargs: real(*args, **kwargs) * np.float32("nan"))
+        real = pipeline.remap_panorama
+        monkeypatch.setattr(pipeline, "remap_panorama", lambda *args, **kwargs: real(*args, **kwargs) * np.float32("nan"))
     else:
         real = module._output_points
         monkeypatch.setattr(module, "_output_points", lambda *args: [[[float("nan"), 0.0]] * 3 for _ in real(*args)])

@@ -400,7 +400,7 @@ def _warp_frames(args: argparse.Namespace) -> None:
     outputs = _frame_outputs(args)
     handles = load_handles(args.handles) if args.handles is not None else None
     saved = load_map(args.apply_map) if args.apply_map is not None else None
-    first = read_panorama(args.input[0], args.fit, width=args.width, warp=True)
+    first = read_panorama(args.input[0], args.fit, width=args.width, warp=True, reduce=False)  # frames share one size: all whole
     check_format(outputs[0], first[:0])  # the folder may not exist yet
     start = time.perf_counter()
     result: Result | None = None

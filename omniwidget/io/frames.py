@@ -181,7 +181,7 @@ def warp_frames(
     def one(pair: tuple[Path, Path]) -> str | None:
         src, dst = pair
         try:
-            frame = read_panorama(src, fit, width=src_shape[1])  # a JPEG decoded reduced as the first frame was
+            frame = read_panorama(src, fit)
             if frame.shape[:2] != tuple(src_shape):
                 raise ImageError(f"{src}: the frame is {frame.shape[1]} x {frame.shape[0]}, the map is for {src_shape[1]} x {src_shape[0]}")
             write_image(dst, remap_panorama(frame, coordinates, order))

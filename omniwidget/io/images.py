@@ -910,25 +910,25 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width:
     return _read_image(Path(path), orientation=orientation, width=width, warp=False)
 
 
-def _reduction(path: Path, header: ImageHeader | None, *, warp: bool, width: int | None) -> int:
-    """The reduction ``path`` is decoded at (:func:`asked_reduction`), once it fits in memory with it; else refused."""
+def _reduction(path: Path, header: ImageHeader | None, *, warp: bool, width: int | None, reduce: bool = True) -> int:
+    """The reduction ``path`` is decoded at (:func:`asked_reduction`, or 1 without ``reduce``), once it fits in memory; else refused."""
     if header is None:
         return 1
-    reduce = asked_reduction(header, width)
+    factor = asked_reduction(header, width) if reduce else 1
     have = available_memory()
-    if have is not None and (need := _needed(header, warp=warp, width=width, reduce=reduce)) > have:
+    if have is not None and (need := _needed(header, warp=warp, width=width, reduce=factor)) > have:
         raise _refusal(path, header, need, have, warp=warp, width=width)
-    return reduce
+    return factor
 
 
-def _read_image(path: Path, *, orientation: bool, width: int | None, warp: bool) -> NDArray:
+def _read_image(path: Path, *, orientation: bool, width: int | None, warp: bool, reduce: bool = True) -> NDArray:
     import cv2
 
     path = Path(path)
     if path.is_dir():
         raise ImageError(f"{path}: is a folder, not an image file")
     header = image_header(path)  # refuses a FIFO or a device: the read would hang, or never end
-    reduce = _reduction(path, header, warp=warp, width=width)
+    factor = _reduction(path, header, warp=warp, width=width, reduce=reduce)
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -960,8 +960,8 @@ def _read_image(path: Path, *, orientation: bool, width: int | None, warp: bool)
             raise ImageError(f"{path}: the file is {problem}")
         raise ImageError(f"{path}: the file looks truncated ({problem}); was it copied or downloaded whole?")
     flags = cv2.IMREAD_UNCHANGED
-    if reduce > 1 and header is not None:  # a JPEG decoded smaller; OpenCV must not turn it too (done below)
-        flags = getattr(cv2, _REDUCTIONS[reduce][1 if len(header.shape) == 2 else 0]) | cv2.IMREAD_IGNORE_ORIENTATION
+    if factor > 1 and header is not None:  # a JPEG decoded smaller; OpenCV must not turn it too (done below)
+        flags = getattr(cv2, _REDUCTIONS[factor][1 if len(header.shape) == 2 else 0]) | cv2.IMREAD_IGNORE_ORIENTATION
     try:
         image = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     except cv2.error as exc:
@@ -997,7 +997,9 @@ def _swap_red_blue(image: NDArray) -> NDArray:
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB if image.shape[2] == 3 else cv2.COLOR_BGRA2RGBA)
 
 
-def read_panorama(path: str | os.PathLike[str], fit: Fit | None = None, *, width: int | None = None, warp: bool = False) -> NDArray:
+def read_panorama(
+    path: str | os.PathLike[str], fit: Fit | None = None, *, width: int | None = None, warp: bool = False, reduce: bool = True
+) -> NDArray:
     """Read an equirectangular panorama: :func:`read_image`, made 2:1 as ``fit`` says, then :func:`check_panorama`.
 
     Parameters
@@ -1011,6 +1013,9 @@ def read_panorama(path: str | os.PathLike[str], fit: Fit | None = None, *, width
     warp : bool
         Count the memory of a warp to ``width`` too (:func:`memory_needed`), so that a
         panorama whose warp would not fit is refused before it is decoded.
+    reduce : bool
+        False: decode it whole whatever ``width`` says (frames that must share one size
+        whatever their formats); the memory is then counted whole.
 
     Returns
     -------
@@ -1021,7 +1026,7 @@ def read_panorama(path: str | os.PathLike[str], fit: Fit | None = None, *, width
     ImageError
         Naming the file and what is wrong with it.
     """
-    image = _read_image(Path(path), orientation=True, width=width, warp=warp)
+    image = _read_image(Path(path), orientation=True, width=width, warp=warp, reduce=reduce)
     if fit is not None:
         image = to_equirectangular(image, fit, str(path))
     return check_panorama(image, str(path))
