@@ -55,13 +55,20 @@ def _check_weights(result, atol: float = 1e-9) -> None:
         assert len(own) >= len(samples) - 2 and np.all(result.prescribed[own].sum(axis=1) == 1)
 
 
+#: How much less straight the blend leaves a line at its constrained samples than its own map does, px: the README
+#: says "as straight as its own map makes it", measured 2e-13 px (7e-14 at 1024). Rounding level: 1e-11 px at any width.
+LINE_EXCESS_PX = 1e-11
+
+
 def _check_lines(result, width: int = W) -> None:
-    """Blending must not spoil any line: as straight as its own map makes it, within 0.3 px (at 2048; the same angle
-    at ``width``)."""
+    """Blending must not spoil any line: at its constrained samples as straight as its own map makes it, to rounding."""
+    worst = 0.0
     for control, samples in result.constraints.lines:
         own = straightness(result.controls[control].moebius(samples), width, fit="best")
         blended = straightness(result.forward_points(samples, control), width, fit="best")
-        assert blended <= own + 0.3 * width / W, (result.controls[control].label, own, blended)
+        assert blended <= own + LINE_EXCESS_PX, (result.controls[control].label, own, blended)
+        worst = max(worst, blended - own)
+    print(f"\nlines at {width}: the blend's excess over their own maps up to {worst:.2e} px")
 
 
 #: The rooms below at full size are left to the full suite (CI); the fast loop runs each test's twin at 1024 or 512 on
