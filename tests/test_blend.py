@@ -71,6 +71,13 @@ def _check_lines(result, width: int = W) -> None:
     print(f"\nlines at {width}: the blend's excess over their own maps up to {worst:.2e} px")
 
 
+def _check_finite(result, image) -> None:
+    """No NaN reaches the image: the map that placed the pixels is finite everywhere (a NaN there would be a black pixel
+    of a uint8 image, never a NaN in it), and the image is of the input's kind."""
+    assert result.image.dtype == image.dtype and result.image.shape[2:] == image.shape[2:]
+    assert np.all(np.isfinite(result.placed_map()))
+
+
 #: The rooms below at full size are left to the full suite (CI); the fast loop runs each test's twin at 1024 or 512 on
 #: one room, its px bounds scaled to the width (the same angle) and the others as they are. (Room 2 keeps its 9 lines
 #: at 1024; at 512 only 7 of them are marked.)
@@ -92,7 +99,8 @@ def _check_room_with_cage_and_point(seed: int, n_lines: int, width: int) -> None
     scene, lines = _room_scene(seed, n_lines, KEEP_CLEAR, width)
     assert len(lines) == n_lines
     result = warp(scene.image, _lines_doc(lines, CageHandle(CAGE), POINT))
-    assert result.weights is not None and np.all(np.isfinite(result.image))
+    assert result.weights is not None
+    _check_finite(result, scene.image)
     inverse = result.inverse_map(np.float64)
     # the default mode never folds (issue 30). Room 6's blend (12 lines, eq. 4 line by line) folds 2 pixels where the
     # pieces of two lines whose ends are 1° apart meet: one window untangles them, and the warning says so and names
@@ -137,7 +145,8 @@ def _check_lines_only(seed: int, n_lines: int, anchor, width: int) -> None:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = warp(scene.image, doc)
-    assert np.all(np.isfinite(result.image)) and coverage(result.inverse_map(np.float64)) >= 0.99
+    _check_finite(result, scene.image)
+    assert coverage(result.inverse_map(np.float64)) >= 0.99
     if anchor is None:  # the precondition: the paper's maps do fold here, far above the warning's level
         assert result.folds.area >= 100 * FOLD_WARNING_AREA, f"the paper's method should fold here: {result.folds.area:.2e}"
     fold_warnings = [str(w.message) for w in caught if issubclass(w.category, BlendWarning) and "folds over" in str(w.message)]
@@ -193,7 +202,7 @@ def _check_point_into_fixed_cage(width: int, anchor: float | None) -> None:
         warnings.simplefilter("always")
         result = warp(scene.image, doc)
     messages = [str(w.message) for w in caught if issubclass(w.category, BlendWarning)]
-    assert np.all(np.isfinite(result.image))
+    _check_finite(result, scene.image)
     assert any(m.startswith("handles[1] (point) moves what handles[0] (cage) holds still") for m in messages), messages
     lon, lat = coords.grid_lonlat(width)
     if anchor is None:  # the paper's method folds, and says where
