@@ -72,6 +72,10 @@ def _check_still_background(seed: int, n: int, width: int) -> None:
     ours, theirs = summary(still), summary(paper)
     print(f"\nroom {seed}, {len(lines)} lines at {width}: anchor {SUGGESTED_ANCHOR}: {ours}\n  paper: {theirs}")
     assert still.controls[-1].handle == BACKGROUND and paper.controls[-1].handle != BACKGROUND
+    # the blend's weights are the eased ones (lines only: no cage insides, no point ladders): the handles' share of each
+    # mesh vertex is the cube of their share in the normalised bounded biharmonic weights, written out here
+    raw = still.raw_weights / still.raw_weights.sum(axis=1, keepdims=True)
+    np.testing.assert_allclose(1 - still.weights[:, -1], (1 - raw[:, -1]) ** 3, rtol=0, atol=1e-12)
     excess = _excess(still, width)
     print(f"  lines' excess over their own maps: {excess:.2e} px")
     assert excess <= LINE_EXCESS_PX  # every line as straight as its own map makes it
@@ -213,11 +217,21 @@ def test_the_eased_background_keeps_every_boundary_condition():
     assert np.allclose(eased.sum(axis=1), 1) and eased.min() >= 0
     assert np.array_equal(eased[:5], weights[:5])
     share, eased_share = 1 - weights[5:, -1], 1 - eased[5:, -1]
-    assert np.allclose(eased_share, share**BACKGROUND_EASE)
+    assert np.allclose(eased_share, share**3)  # the README's cube, written out: not the constant
     np.testing.assert_allclose(eased[5:, :-1] / eased_share[:, None], weights[5:, :-1] / share[:, None])  # the handles' mix kept
     np.testing.assert_allclose(ease_background(weights, 1.0), weights, rtol=0, atol=1e-15)
     with pytest.raises(ValueError, match="at least 1"):
         ease_background(weights, 0.5)
+
+
+def test_the_background_eases_by_the_cube_worked_by_hand():
+    """The numbers the eased formula must give, by hand: the handles' share s becomes s**3 (BACKGROUND_EASE = 3,
+    README), split among them as before; the background takes the rest."""
+    rows = np.array([[0.3, 0.2, 0.5], [0.1, 0.0, 0.9], [0.6, 0.4, 0.0], [0.0, 0.0, 1.0]])
+    # s = 0.5 -> 0.125 = 0.6 * 0.125 + 0.4 * 0.125; s = 0.1 -> 0.001; s = 1 and s = 0 stay
+    by_hand = np.array([[0.075, 0.05, 0.875], [0.001, 0.0, 0.999], [0.6, 0.4, 0.0], [0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(ease_background(rows), by_hand, rtol=0, atol=1e-15)
+    assert BACKGROUND_EASE == 3.0
 
 
 def test_near_mask_is_exact_at_pixel_centres_and_across_the_seam():
