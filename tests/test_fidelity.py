@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 import types
 import warnings
 
@@ -391,16 +390,16 @@ def test_families_are_reproducible_vary_with_the_seed_and_ignore_the_width():
     assert family_scene("short", 3, 16)[0].size != family_scene("long", 3, 16)[0].size
 
 
-def test_family_generation_is_fast():
-    times = []
+def test_families_make_their_handles_at_a_tiny_width():
+    """Every family's handles come without rendering at full size: a 16 px wide scene has the handles a 64 px one
+    has. (How long that takes is measured by ``python bench/bench_families.py``, 0.015 s median, 0.07 s at most: no
+    test asserts a wall-clock time.)"""
     for family in FAMILIES:
-        if family == "suggested":  # runs the detector on a 2048 render: ~3.5 s (tests/test_scenes.py)
+        if family == "suggested":  # runs the detector on a 2048 render (tests/test_scenes.py)
             continue
         for seed in range(3):
-            start = time.perf_counter()
-            family_scene(family, seed, 16)  # the same handles as at 2048, without the rendering
-            times.append(time.perf_counter() - start)
-    assert np.median(times) < 0.25 and max(times) < 1.0
+            tiny, small = family_scene(family, seed, 16), family_scene(family, seed, 64)
+            assert tiny[0].image.shape == (8, 16, 3) and tiny[1] == small[1] and len(tiny[1].handles) > 0, (family, seed)
 
 
 @pytest.mark.parametrize(
