@@ -368,6 +368,48 @@ def _passes_by(start: FloatArray, along: FloatArray, span: FloatArray, v: FloatA
     return inside(t) | inside(opposite)
 
 
+def _scores(
+    normals: FloatArray,
+    ends_a: FloatArray,
+    ends_b: FloatArray,
+    along: FloatArray,
+    spans: FloatArray,
+    v: FloatArray,
+    sigma: FloatArray,
+    cap: float,
+    polar: float,
+) -> FloatArray:
+    """Each candidate's score, ``Σ 1 / σ_i`` over the arcs that vote for it (:func:`level`'s ``votes``), shape (m,).
+
+    The same sums as over the whole ``(k, m)`` table of votes: the dot products are taken
+    for all of it, but the rest only where an arc's circle passes within ``cap`` of the
+    candidate (few do), and the sums add the voters in the arcs' order.
+
+    Parameters
+    ----------
+    normals, ends_a, ends_b, along : ndarray of float64, shape (k, 3)
+        The arcs' normals, starts, ends, and tangents at their starts.
+    spans : ndarray of float64, shape (k,)
+        Lengths, radians.
+    v : ndarray of float64, shape (3, m)
+        Candidate directions as columns.
+    sigma : ndarray of float64, shape (k,)
+    cap, polar : float
+        The sine of :data:`INLIER_DISTANCE` and the cosine of :data:`POLAR_CAP`.
+    """
+    dots = np.abs(normals @ v)
+    rows, cols = np.nonzero(dots < cap)  # a vote needs arcsin(x) < cap, so x < cap: these are all the voters and more
+    r = np.arcsin(np.clip(dots[rows, cols], 0.0, 1.0))
+    start = (ends_a @ v)[rows, cols]
+    t = np.arctan2((along @ v)[rows, cols], start)  # the angle along each circle of the point nearest to v
+    opposite = np.where(t > 0, t - np.pi, t + np.pi)  # and of the point nearest to -v
+    span = spans[rows]
+    passes = ((t > 0) & (t < span)) | ((opposite > 0) & (opposite < span))
+    far = ~passes & (np.maximum(np.abs(start), np.abs((ends_b @ v)[rows, cols])) < polar)
+    vote = (r < INLIER_SIGMAS * sigma[rows]) & (r < cap) & far
+    return np.asarray(np.bincount(cols[vote], weights=1.0 / sigma[rows[vote]], minlength=v.shape[1]), dtype=np.float64)
+
+
 def _refit(normals: FloatArray, sigma: FloatArray, v: FloatArray, iterations: int = 8) -> FloatArray:
     """Reweighted least squares: ``v`` the smallest eigenvector of ``Σ w_i n_i n_iᵀ``, ``w_i = 1 / σ_i²`` with Huber weights."""
     for _ in range(iterations):
@@ -463,7 +505,7 @@ def level(
     zenith = np.array([0.0, 0.0, 1.0])
     sigma_z = _sigma(normals, mids, lengths, contrast, zenith, accuracy)  # the errors hardly change within max_tilt of the zenith
     scores = np.concatenate(
-        [(votes(block.T, sigma_z) / sigma_z[:, None]).sum(axis=0) for block in np.array_split(v, max(1, len(v) // CANDIDATES_PER_BLOCK))]
+        [_scores(normals, ends_a, ends_b, along, spans, block.T, sigma_z, cap, polar) for block in np.array_split(v, max(1, len(v) // CANDIDATES_PER_BLOCK))]
     )
     best = v[int(np.argmax(scores))]
     inliers, sigma = inliers_of(best)
