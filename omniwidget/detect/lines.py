@@ -21,6 +21,7 @@ gives the figures.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -246,13 +247,34 @@ def render_view(gray: NDArray[np.uint8], view: View) -> NDArray[np.uint8]:
     h, w = gray.shape
     import cv2  # OpenCV loads with the first detection, not with the package
 
-    grid = np.mgrid[0 : view.size, 0 : view.size][::-1].transpose(1, 2, 0)  # (y, x) planes -> (x, y)
-    px = coords.lonlat_to_px(coords.xyz_to_lonlat(view.rays(grid)), w)
-    # columns wrap: x in [0, w), and column w (the copy of column 0) closes the seam
-    map_x = np.mod(px[..., 0], w).astype(np.float32)
-    map_y = np.clip(px[..., 1], 0, h - 1).astype(np.float32)
+    map_x, map_y = _view_maps(view, w, h)
     wrapped = np.concatenate([gray, gray[:, :1]], axis=1)
     return np.asarray(cv2.remap(wrapped, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE), dtype=np.uint8)
+
+
+def _view_maps(view: View, w: int, h: int) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Where each pixel of ``view`` looks in a ``w x h`` panorama: ``cv2.remap``'s maps, columns in ``[0, w)``.
+
+    :meth:`View.rays`, :func:`omniwidget.sphere.coords.xyz_to_lonlat` and
+    :func:`~omniwidget.sphere.coords.lonlat_to_px` written out on the view's planes of x, y
+    and z: the same arithmetic, so the same maps to the bit, without their (size, size, 3)
+    temporaries.
+    """
+    c = (view.size - 1) / 2
+    x = (np.arange(view.size, dtype=np.float64) - c)[None, :]
+    y = (np.arange(view.size, dtype=np.float64) - c)[:, None]
+    f = view.focal * view.forward
+    d = [f[k] + x * view.right[k] + y * view.down[k] for k in range(3)]
+    norm = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    rx, ry, rz = (part / norm for part in d)
+    lon = np.mod(np.degrees(np.arctan2(ry, rx)) + 180.0, 360.0) - 180.0  # coords.wrap_lon
+    lon = np.where(lon >= 180.0, lon - 360.0, lon)
+    lat = np.degrees(np.arctan2(rz, np.hypot(rx, ry)))
+    scale = w / 360.0
+    # columns wrap: x in [0, w), and column w (the copy of column 0) closes the seam
+    map_x = np.mod((lon + 180.0) * scale - 0.5, w).astype(np.float32)
+    map_y = np.clip((90.0 - lat) * scale - 0.5, 0, h - 1).astype(np.float32)
+    return map_x, map_y
 
 
 # --- detection and lifting -----------------------------------------------------------
@@ -345,7 +367,7 @@ class Arc:
     @property
     def length(self) -> float:
         """Degrees."""
-        return math.degrees(math.atan2(float(np.linalg.norm(np.cross(self.start, self.end))), float(self.start @ self.end)))
+        return math.degrees(math.atan2(float(np.linalg.norm(_cross(self.start, self.end))), float(self.start @ self.end)))
 
 
 def _unit(v: NDArray) -> NDArray:
@@ -369,6 +391,12 @@ def merge_arcs(
     ``distance`` degrees of the cluster's great circle and whose extent along it comes within ``gap`` degrees of the cluster's joins it; the
     circle is refitted to all members' points (the smallest eigenvector of their scatter,
     weighted by length) and the search repeats until nothing joins.
+
+    Each search tests only the arcs not yet taken whose middles are near the cluster (a grid
+    of them, :class:`_EndTree`): an arc no longer than the seed (as every arc not yet
+    taken is), within ``distance`` of the cluster's circle and within ``gap`` of its extent
+    has its middle within ``extent / 2 + gap + distance + seed length`` of the extent's
+    middle. So the result is that of testing every arc not yet taken.
 
     Parameters
     ----------
@@ -394,43 +422,190 @@ def merge_arcs(
     samples = _unit(a[:, None, :] * (1 - sample_t)[None, :, None] + b[:, None, :] * sample_t[None, :, None])  # (k, 5, 3) chords, normalised
     sin_d = math.sin(math.radians(distance))
     gap_r = math.radians(gap)
+    side = np.cross(a, b)  # the polarity: the dark side
+    normals = _unit(side)
+    points = np.stack([a, b, mid, side], axis=1)  # (k, 4, 3): what each search takes dot products of
+    middles = _EndTree(mid)
+    reach = math.radians(distance) + gap_r
     free = np.ones(k, dtype=bool)
-    out: list[Arc] = []
-    for seed in np.argsort(-length):
+    out: list[Arc | None] = []
+    alone: list[int] = []
+    for seed in np.argsort(-length).tolist():
         if not free[seed]:
             continue
-        members = np.zeros(k, dtype=bool)
-        members[seed] = True
         free[seed] = False
-        normal = _unit(np.cross(a[seed], b[seed]))
+        members = [seed]
+        normal = normals[seed]
         origin = a[seed]
         lo, hi = 0.0, float(length[seed])
+        longest = hi  # no arc not yet taken is longer than the seed
+        centre = mid[seed]
+        looked: tuple[FloatArray, float, NDArray[np.intp]] | None = None  # the last search of the grid: centre, radius, arcs
         for _ in range(4):
-            cand = np.flatnonzero(free)
+            radius = 0.5 * (hi - lo) + reach + longest
+            if looked is not None and _angle(centre, looked[0]) + radius <= looked[1]:
+                cand = looked[2]  # the refitted cluster's ball lies inside the last one searched
+            else:
+                wide = radius + _SEARCH_SPARE
+                cand = middles.near(centre, wide)
+                looked = (centre, wide, cand)
+            cand = cand[free[cand]]
+            cand = cand[np.abs(mid[cand] @ normal) < sin_d]  # the midpoint first: it rules out most
             if cand.size == 0:
                 break
-            near = (np.abs(a[cand] @ normal) < sin_d) & (np.abs(b[cand] @ normal) < sin_d) & (np.abs(mid[cand] @ normal) < sin_d)
+            other = _cross(normal, origin)
+            dots = points[cand] @ np.array([normal, other, origin]).T  # (m, 4, 3)
+            near = np.abs(dots[:, :2, 0]).max(axis=1) < sin_d
             if polarity:  # the same polarity: the dark side on the same side
-                near &= np.cross(a[cand], b[cand]) @ normal > 0
-            cand = cand[near]
-            if cand.size == 0:
+                near &= dots[:, 3, 0] > 0
+            if not near.any():
                 break
-            other = np.cross(normal, origin)
-            ta = np.arctan2(a[cand] @ other, a[cand] @ origin)
-            tb = np.arctan2(b[cand] @ other, b[cand] @ origin)
+            cand, dots = cand[near], dots[near]
+            ta = np.arctan2(dots[:, 0, 1], dots[:, 0, 2])
+            tb = np.arctan2(dots[:, 1, 1], dots[:, 1, 2])
             c_lo, c_hi = np.minimum(ta, tb), np.maximum(ta, tb)
             joins = (c_lo <= hi + gap_r) & (c_hi >= lo - gap_r) & (c_hi - c_lo < math.pi)
             joins &= np.maximum(hi, c_hi) - np.minimum(lo, c_lo) < MAX_ARC  # an arc is the shorter way between its ends
             if not joins.any():
                 break
             new = cand[joins]
-            members[new] = True
+            members.extend(new.tolist())
             free[new] = False
             lo, hi = min(lo, float(c_lo[joins].min())), max(hi, float(c_hi[joins].max()))
-            normal = _refit(samples[members], length[members], normal)
+            taken = np.sort(np.array(members))
+            normal = _refit(samples[taken], length[taken], normal)
             origin = _unit(origin - (origin @ normal) * normal)
-        out.append(_finish(a[members], b[members], length[members], contrast[members], normal, origin))
-    return out
+            middle = 0.5 * (lo + hi)
+            centre = math.cos(middle) * origin + math.sin(middle) * _cross(normal, origin)
+        if len(members) > 1:
+            taken = np.sort(np.array(members))
+            out.append(_finish(a[taken], b[taken], length[taken], contrast[taken], normal, origin))
+        else:
+            alone.append(seed)
+            out.append(None)
+    singles = iter(_single_arcs(a, b, normals, length, contrast, np.array(alone, dtype=np.intp)))
+    return [next(singles) if arc is None else arc for arc in out]
+
+
+def _angle(u: FloatArray, v: FloatArray) -> float:
+    """The angle between unit vectors ``u`` and ``v``, radians, overestimated by at most 1e-7 (never under)."""
+    return 2.0 * math.asin(min(1.0, 0.5 * float(np.linalg.norm(u - v)))) + 1e-7
+
+
+def _cross(u: FloatArray, v: FloatArray) -> FloatArray:
+    """``np.cross`` of two 3-vectors, the same arithmetic without its overhead."""
+    u0, u1, u2 = u.tolist()
+    v0, v1, v2 = v.tolist()
+    return np.array([u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0])
+
+
+#: Added to every search radius of :class:`_EndTree` (radians): the rounding, and an arc's extent
+#: along another circle a little longer than its own length (by ``1 / cos(distance)`` at most).
+_TREE_MARGIN = math.radians(1.0)
+#: How much wider (radians) :func:`merge_arcs` searches the grid than it needs: the refitted cluster's
+#: next search is then mostly inside the last one, and the grid is not searched again.
+_SEARCH_SPARE = math.radians(1.5)
+#: Side of the grid's cubes (:class:`_EndTree`), in the unit vectors' coordinates: about 6 degrees.
+_GRID_CELL = 0.1
+#: Relative loosening of the first searches' tests (:func:`_first_joins`) against rounding.
+_LOOSE = 1e-9
+
+
+class _EndTree:
+    """Points of arcs (their ends, or their middles) in a grid of cubes: which arcs have one within an angle of a point.
+
+    The unit vectors are binned in cubes of side :data:`_GRID_CELL`, sorted so that each
+    column of cubes along z is one run; a query looks in the columns that meet the box around
+    its ball and keeps the points inside the ball. numpy alone: no k-d tree to import.
+
+    Parameters
+    ----------
+    *points : ndarray of float64, shape (k, 3)
+        Unit vectors, one of each arc per array: ``a, b`` for the ends, ``mid`` for the middles.
+    """
+
+    def __init__(self, *points: FloatArray) -> None:
+        self.k = len(points[0])
+        every = np.concatenate(points)
+        self.m = int(math.ceil(2.0 / _GRID_CELL)) + 1
+        cell = np.clip(np.floor((every + 1.0) / _GRID_CELL).astype(np.int64), 0, self.m - 1)
+        key = (cell[:, 0] * self.m + cell[:, 1]) * self.m + cell[:, 2]
+        order = np.argsort(key, kind="stable")
+        self.keys = key[order]
+        self.points = every[order]
+        self.owner = (order % self.k).astype(np.intp)
+
+    def _runs(self, point: FloatArray, chord: float) -> tuple[list[int], list[int]]:
+        """The first and last keys of the columns of cubes that meet the box of half-side ``chord`` around ``point``."""
+        m, top, cell = self.m, self.m - 1, _GRID_CELL
+        x, y, z = point.tolist()
+        x0, x1 = max(int((x - chord + 1.0) // cell), 0), min(int((x + chord + 1.0) // cell), top)
+        y0, y1 = max(int((y - chord + 1.0) // cell), 0), min(int((y + chord + 1.0) // cell), top)
+        z0, z1 = max(int((z - chord + 1.0) // cell), 0), min(int((z + chord + 1.0) // cell), top)
+        columns = [(cx * m + cy) * m for cx in range(x0, x1 + 1) for cy in range(y0, y1 + 1)]
+        return [c + z0 for c in columns], [c + z1 for c in columns]
+
+    @staticmethod
+    def _chord(angle: float) -> float:
+        """The chord of ``angle`` radians plus :data:`_TREE_MARGIN`, at most a half-turn's (2)."""
+        return 2.0 * math.sin(min(angle + _TREE_MARGIN, math.pi) / 2) + 1e-12
+
+    def near(self, point: FloatArray, angle: float) -> NDArray[np.intp]:
+        """The arcs with a point within ``angle`` radians (plus :data:`_TREE_MARGIN`) of unit vector ``point``; an arc once per point of it there."""
+        chord = self._chord(angle)
+        first, last = self._runs(point, chord)
+        starts = np.searchsorted(self.keys, first, "left")
+        count = np.searchsorted(self.keys, last, "right") - starts
+        total = int(count.sum())
+        found = np.repeat(starts - (np.cumsum(count) - count), count) + np.arange(total)  # the runs' indices, one after another
+        near = self.points[found] @ point >= 1.0 - 0.5 * chord * chord  # within the chord: the dot product of unit vectors
+        return self.owner[found[near]]
+
+    def query(self, points: FloatArray, angles: NDArray | float) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """``(i, j)``: arc ``j`` has a point within ``angles[i]`` radians (plus the margin) of ``points[i]``, all at once."""
+        chord = 2.0 * np.sin(np.minimum(np.broadcast_to(np.asarray(angles, dtype=np.float64), len(points)) + _TREE_MARGIN, math.pi) / 2) + 1e-12
+        lo = np.clip(np.floor((points - chord[:, None] + 1.0) / _GRID_CELL).astype(np.int64), 0, self.m - 1)
+        hi = np.clip(np.floor((points + chord[:, None] + 1.0) / _GRID_CELL).astype(np.int64), 0, self.m - 1)
+        nx, ny = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
+        columns = nx * ny
+        which = np.repeat(np.arange(len(points), dtype=np.intp), columns)
+        local = np.arange(int(columns.sum()), dtype=np.int64) - np.repeat(np.cumsum(columns) - columns, columns)
+        cx, cy = lo[which, 0] + local // ny[which], lo[which, 1] + local % ny[which]
+        base = (cx * self.m + cy) * self.m
+        starts = np.searchsorted(self.keys, base + lo[which, 2], "left")
+        count = np.searchsorted(self.keys, base + hi[which, 2], "right") - starts
+        which = np.repeat(which, count)
+        found = np.repeat(starts - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
+        near = np.einsum("ij,ij->i", self.points[found], points[which]) >= 1.0 - 0.5 * chord[which] ** 2
+        return which[near], self.owner[found[near]]
+
+    def pairs(self, *balls: tuple[FloatArray, FloatArray]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """:meth:`query` of each ``(points, angles)`` given, together: sorted by ``i`` then ``j``, each pair once, no ``i == j``."""
+        keys = []
+        for points, angles in balls:
+            i, j = self.query(points, angles)
+            keys.append(i.astype(np.int64) * self.k + j)
+        key = np.sort(np.concatenate(keys))
+        key = key[np.concatenate([[True], key[1:] != key[:-1]])]  # each pair once
+        i, j = key // self.k, key % self.k
+        keep = i != j
+        return i[keep].astype(np.intp), j[keep].astype(np.intp)
+
+
+def _single_arcs(a: FloatArray, b: FloatArray, normals: FloatArray, length: FloatArray, contrast: FloatArray, which: NDArray[np.intp]) -> list[Arc]:
+    """:func:`_finish` of each arc ``which`` alone (its own circle, origin ``a``), all at once."""
+    if which.size == 0:
+        return []
+    origin, end, n = a[which], b[which], normals[which]
+    other = np.cross(n, origin)
+    ta = np.arctan2(np.einsum("ij,ij->i", origin, other), np.einsum("ij,ij->i", origin, origin))
+    tb = np.arctan2(np.einsum("ij,ij->i", end, other), np.einsum("ij,ij->i", end, origin))
+    lo, hi = np.minimum(ta, tb), np.maximum(ta, tb)
+    start_v = np.cos(lo)[:, None] * origin + np.sin(lo)[:, None] * other
+    end_v = np.cos(hi)[:, None] * origin + np.sin(hi)[:, None] * other
+    weight = np.maximum(length[which], 1e-12)
+    shade = contrast[which] * weight / weight
+    return [Arc(start=s, end=e, contrast=float(c), coverage=1.0, pieces=1) for s, e, c in zip(start_v, end_v, shade, strict=True)]
 
 
 def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap: float = 0.5) -> list[Arc]:
@@ -440,7 +615,9 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
     little apart. Pairs of arcs of opposite polarity whose points lie within ``distance``
     degrees of each other's great circles and whose extents overlap by at least ``overlap``
     of the shorter become one arc along the bisecting great circle, over the union of
-    their extents. Arcs without such a partner are kept as they are.
+    their extents. Arcs without such a partner are kept as they are. Only arcs with an end
+    near an arc can be its partner: the tests run on the pairs a grid of the endpoints
+    (:class:`_EndTree`) finds, all at once, then on the few left, longest first, as if on every arc.
 
     Parameters
     ----------
@@ -462,21 +639,39 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
     b = np.array([arc.end for arc in arcs])
     normal = _unit(np.cross(a, b))
     mid = _unit(a + b)
-    length = np.array([arc.length for arc in arcs])
+    length = np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.einsum("ij,ij->i", a, b)))
     sin_d = math.sin(math.radians(distance))
+    # the partners each arc may have, by the tests below loosened against rounding: a partner no longer
+    # than it overlapping it has an end within half its length and ``distance`` of its middle; and
+    # one across the far side of its circle (its ends' angles from ``a`` on either side of ±180°,
+    # which the overlap takes as the whole turn) has both ends within its length and ``distance`` of ``-a``
+    span, d_r = np.radians(length), math.radians(distance)
+    i_of, j_of = _EndTree(a, b).pairs((mid, span / 2 + d_r), (-a, span + d_r))
+    dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731 - rowwise dot products
+    loose = sin_d * (1 + _LOOSE) + 1e-12
+    n_i, n_j = normal[i_of], normal[j_of]
+    ok = dot(n_j, n_i) < 1e-12
+    for points, circles in ((a[j_of], n_i), (b[j_of], n_i), (mid[j_of], n_i), (a[i_of], n_j), (b[i_of], n_j)):
+        ok &= np.abs(dot(points, circles)) < loose
+    i_of, j_of = i_of[ok], j_of[ok]
+    bounds = np.searchsorted(i_of, np.arange(k + 1))
     taken = np.zeros(k, dtype=bool)
     out: list[Arc] = []
-    for i in np.argsort(-length):
+    for i in np.argsort(-length).tolist():
         if taken[i]:
             continue
         taken[i] = True
-        cand = np.flatnonzero(~taken & (normal @ normal[i] < 0))
-        near = (np.abs(a[cand] @ normal[i]) < sin_d) & (np.abs(b[cand] @ normal[i]) < sin_d) & (np.abs(mid[cand] @ normal[i]) < sin_d)
-        near &= (np.abs(normal[cand] @ a[i]) < sin_d) & (np.abs(normal[cand] @ b[i]) < sin_d)
-        cand = cand[near]
+        cand = j_of[bounds[i] : bounds[i + 1]]
+        cand = cand[~taken[cand]]
+        if cand.size:
+            cand = cand[normal[cand] @ normal[i] < 0]
+            near = (np.abs(a[cand] @ normal[i]) < sin_d) & (np.abs(b[cand] @ normal[i]) < sin_d) & (np.abs(mid[cand] @ normal[i]) < sin_d)
+            near &= (np.abs(normal[cand] @ a[i]) < sin_d) & (np.abs(normal[cand] @ b[i]) < sin_d)
+            cand = cand[near]
         best, best_overlap = -1, 0.0
-        other = np.cross(normal[i], a[i])
-        for j in cand:
+        if cand.size:
+            other = _cross(normal[i], a[i])
+        for j in cand.tolist():
             ta = math.atan2(float(a[j] @ other), float(a[j] @ a[i]))
             tb = math.atan2(float(b[j] @ other), float(b[j] @ a[i]))
             shared = min(max(ta, tb), math.radians(length[i])) - max(min(ta, tb), 0.0)
@@ -509,7 +704,7 @@ def _refit(points: NDArray, weights: NDArray, previous: FloatArray) -> FloatArra
 
 def _finish(a: NDArray, b: NDArray, length: NDArray, contrast: NDArray, normal: FloatArray, origin: FloatArray) -> Arc:
     """The merged arc: the members' extent projected on the fitted circle, and its support."""
-    other = np.cross(normal, origin)
+    other = _cross(normal, origin)
     ta = np.arctan2(a @ other, a @ origin)
     tb = np.arctan2(b @ other, b @ origin)
     lo_each, hi_each = np.minimum(ta, tb), np.maximum(ta, tb)
@@ -630,14 +825,22 @@ def find_arcs(gray: NDArray[np.uint8], *, detector: str = "lsd", views: Sequence
     list of Arc
     """
     views = cube_views(gray.shape[1]) if views is None else views
-    ends_a, ends_b, contrasts = [], [], []
-    for view in views:
+
+    def lifted(view: View) -> tuple[FloatArray, FloatArray, FloatArray]:
         segments, contrast = detect_segments(render_view(gray, view), detector)
         a, b = lift_segments(segments, view)
-        ends_a.append(a)
-        ends_b.append(b)
-        contrasts.append(contrast)
-    arcs = pair_bands(merge_arcs(np.concatenate(ends_a), np.concatenate(ends_b), np.concatenate(contrasts)))
+        return a, b, contrast
+
+    workers = min(len(views), os.cpu_count() or 1)
+    if workers > 1:  # the views are independent, and numpy's and OpenCV's work in them lets other threads run
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(workers, thread_name_prefix="omniwidget-detect") as pool:
+            found = list(pool.map(lifted, views))
+    else:
+        found = [lifted(view) for view in views]
+    ends_a, ends_b, contrasts = (np.concatenate(part) for part in zip(*found, strict=True)) if found else (np.empty((0, 3)),) * 2 + (np.empty(0),)
+    arcs = pair_bands(merge_arcs(ends_a, ends_b, contrasts))
     return _merge_again(arcs)
 
 
@@ -659,7 +862,8 @@ def snap_ends(arcs: Sequence[Arc], reach: float = SNAP_REACH) -> list[Arc]:
     there). When another arc's great circle crosses this arc's circle within ``reach``
     degrees of an end, and that crossing lies on (or within ``reach`` of) the other arc,
     the end moves to the nearest such crossing: along its own circle, so the arc stays on
-    its edge.
+    its edge. The other arcs looked at are those passing near the end (a grid of
+    points along each arc, at most a degree apart, :class:`_EndTree`), all ends at once.
 
     Parameters
     ----------
@@ -671,7 +875,8 @@ def snap_ends(arcs: Sequence[Arc], reach: float = SNAP_REACH) -> list[Arc]:
     -------
     list of Arc
     """
-    if len(arcs) < 2:
+    k = len(arcs)
+    if k < 2:
         return list(arcs)
     a = np.array([arc.start for arc in arcs])
     b = np.array([arc.end for arc in arcs])
@@ -680,27 +885,45 @@ def snap_ends(arcs: Sequence[Arc], reach: float = SNAP_REACH) -> list[Arc]:
     other = np.cross(normal, a)
     cos_reach = math.cos(math.radians(reach))
     reach_r = math.radians(reach)
+    # points along each arc and ``reach`` beyond its ends, at most ``step`` apart: a crossing on the
+    # arc so extended lies within ``step / 2`` of one of them
+    step = math.radians(1.0)
+    count = np.ceil((length + 2 * reach_r) / step).astype(np.intp) + 1
+    owner = np.repeat(np.arange(k, dtype=np.intp), count)
+    first = np.cumsum(count) - count
+    t = -reach_r + (np.arange(len(owner)) - first[owner]) * ((length + 2 * reach_r) / (count - 1))[owner]
+    along = np.cos(t)[:, None] * a[owner] + np.sin(t)[:, None] * other[owner]
+    ends = np.concatenate([a, b])  # end e of arc i is row e * k + i
+    row, sample = _EndTree(along).query(ends, reach_r + step / 2)
+    j = owner[sample]
+    key = np.sort(row * k + j)
+    key = key[np.concatenate([[True], key[1:] != key[:-1]])]  # each pair once
+    row, j = key // k, key % k
+    i = row % k
+    keep = i != j
+    row, i, j = row[keep], i[keep], j[keep]
+    # the tests of each end against each arc near it
+    crossing = np.cross(normal[i], normal[j])
+    size = np.linalg.norm(crossing, axis=1)
+    usable = size > math.sin(math.radians(10.0))  # circles that cross at a clear angle
+    row, j, crossing, size = row[usable], j[usable], crossing[usable], size[usable]
+    end = ends[row]
+    x = crossing / size[:, None]
+    xs = x * np.where(np.einsum("ij,ij->i", x, end) < 0, -1.0, 1.0)[:, None]
+    closeness = np.einsum("ij,ij->i", xs, end)
+    tj = np.arctan2(np.einsum("ij,ij->i", xs, other[j]), np.einsum("ij,ij->i", xs, a[j]))
+    ok = (closeness > cos_reach) & (tj > -reach_r) & (tj < length[j] + reach_r)
+    row, j, xs, closeness = row[ok], j[ok], xs[ok], closeness[ok]
+    # each end's nearest crossing (the first arc of the nearest, as an argmax)
+    order = np.lexsort((j, -closeness, row))
+    row, xs = row[order], xs[order]
+    lead = np.ones(len(row), dtype=bool)
+    lead[1:] = row[1:] != row[:-1]
+    snapped: dict[int, FloatArray] = dict(zip(row[lead].tolist(), xs[lead], strict=True))
     out = []
-    for i, arc in enumerate(arcs):
-        ends = [arc.start, arc.end]
-        crossing = np.cross(normal[i], normal)  # (k, 3): where circle i meets each circle
-        size = np.linalg.norm(crossing, axis=1)
-        usable = size > math.sin(math.radians(10.0))  # circles that cross at a clear angle
-        usable[i] = False
-        if not usable.any():
-            out.append(arc)
-            continue
-        x = crossing[usable] / size[usable, None]
-        idx = np.flatnonzero(usable)
-        for e in range(2):
-            end = ends[e]
-            xs = x * np.where(x @ end < 0, -1.0, 1.0)[:, None]
-            close = xs @ end > cos_reach
-            t = np.arctan2(np.einsum("ij,ij->i", xs, other[idx]), np.einsum("ij,ij->i", xs, a[idx]))
-            on_other = (t > -reach_r) & (t < length[idx] + reach_r)
-            ok = close & on_other
-            if ok.any():
-                best = int(np.argmax(np.where(ok, xs @ end, -2.0)))
-                ends[e] = xs[best]
-        out.append(Arc(ends[0], ends[1], arc.contrast, arc.coverage, arc.pieces))
+    for n, arc in enumerate(arcs):
+        if n in snapped or n + k in snapped:
+            out.append(Arc(snapped.get(n, arc.start), snapped.get(n + k, arc.end), arc.contrast, arc.coverage, arc.pieces))
+        else:
+            out.append(Arc(arc.start, arc.end, arc.contrast, arc.coverage, arc.pieces))
     return out
