@@ -39,7 +39,7 @@ from .._files import atomic_write_bytes
 from ..document.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
 from ..errors import HandlesError, ImageError, NotRegularFileError, OmniwidgetError, VideoError
 from ..io.draw import display_rgb
-from ..io.images import check_format, check_panorama, read_image, write_image
+from ..io.images import asked_reduction, check_format, check_panorama, image_header, read_image, write_image
 from ..sphere import coords
 from ._latest import Latest
 
@@ -58,6 +58,7 @@ __all__ = [
     "AUTOSAVE_SUFFIX",
     "DISPLAY_WIDTH",
     "HISTORY",
+    "LAZY_WIDTH",
     "PREVIEW_WIDTH",
     "RESULT_SUFFIX",
     "EditingSession",
@@ -68,6 +69,10 @@ __all__ = [
 PREVIEW_WIDTH = 1024
 #: Largest width of the panorama sent to the browser; larger panoramas are sent downscaled.
 DISPLAY_WIDTH = 2048
+#: A JPEG panorama wider than this is opened reduced (decoded at 1/2 to 1/8 by libjpeg, at
+#: least as wide as the display, the preview's source and the detector need): its full size
+#: is read only when a full-size result is asked for (Save image, ``full=True``).
+LAZY_WIDTH = 8192
 #: Edits kept for undo.
 HISTORY = 500
 #: Seconds a result stays on screen before its quality figures are measured (a drag may go on).
@@ -560,6 +565,7 @@ class EditingSession:
     ) -> None:
         self._video: VideoReader | None = None
         self.frame = 0
+        self._reduced = 1  # the working copy is 1 / _reduced of the panorama's size (_open)
         if isinstance(image, (str, os.PathLike)):
             self._image_path: Path | None = Path(image)
             from ..io.video import VideoReader, is_video_path
@@ -569,15 +575,17 @@ class EditingSession:
                 self.frame = _frame_index(self._video, frame, time)
                 image = self._video.read(self.frame)
             else:
-                image = read_image(image)
+                image = self._open(Path(image), whole_number(preview_width, "preview_width", minimum=2, even=True))
         else:
             self._image_path = None
         if self._video is None and (frame is not None or time is not None):
             raise TypeError("frame and time choose a frame of a video; the editor was given an image")
-        self._image = check_panorama(image)
-        self._image.flags.writeable = False
+        self._working = check_panorama(image)  # the panorama, or a JPEG's reduced decoding (self._reduced)
+        self._working.flags.writeable = False
+        self._full_image: NDArray | None = self._working if self._reduced == 1 else None
         self._scaled: dict[int, NDArray] = {}
-        width = self._image.shape[1]
+        width = self._working.shape[1] * self._reduced
+        self._width = width
         preview_width = whole_number(preview_width, "preview_width", minimum=2, even=True)
         self._preview_width = min(preview_width, width)
         self._preview_source = self._downscaled(2 * self._preview_width)
@@ -605,7 +613,7 @@ class EditingSession:
         self.preview = b""
         self.folds = b""
         self.outputs: list = []
-        self.autosave_path = _autosave_location(autosave, self._image_path, self._image)
+        self.autosave_path = _autosave_location(autosave, self._image_path, self._working)
         self.other_autosaves: list[Path] = []  # this panorama's autosaves not restored, offered in the notice
         self._notice = ""  # status["notice"]
         self._autosave_bad = False  # the autosave file is unreadable: moved aside at the first edit
@@ -651,10 +659,35 @@ class EditingSession:
         self._publish(status={**self.status, **fields})
 
     # --- the image -----------------------------------------------------------------------
+    def _open(self, path: Path, preview_width: int) -> NDArray:
+        """Read the panorama at ``path``: a JPEG wider than :data:`LAZY_WIDTH` reduced to what the editor shows (sets ``_reduced``)."""
+        from ..detect import DETECT_WIDTH
+
+        header = image_header(path)
+        if header is not None and max(header.width, header.height) > LAZY_WIDTH:
+            needed = max(DISPLAY_WIDTH, 2 * preview_width, DETECT_WIDTH)
+            self._reduced = asked_reduction(header, needed)
+            if self._reduced > 1:
+                return read_image(path, width=needed)
+        return read_image(path)
+
     @property
     def image(self) -> NDArray:
-        """The input panorama at full size (read-only)."""
-        return self._image
+        """The input panorama at full size (read-only); a panorama opened reduced is read whole at the first ask."""
+        if self._full_image is None:
+            if self._image_path is None:  # pragma: no cover - only files are opened reduced
+                raise ImageError("the panorama's full size is not known")
+            image = check_panorama(read_image(self._image_path), str(self._image_path))
+            if image.shape[1] != self._width:
+                raise ImageError(f"{self._image_path}: the file changed while it was edited ({image.shape[1]} wide, opened {self._width})")
+            image.flags.writeable = False
+            self._full_image = image
+        return self._full_image
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """``(width, height)`` of the panorama at full size (known before it is read whole)."""
+        return self._width, self._width // 2
 
     @property
     def image_path(self) -> Path | None:
@@ -665,11 +698,10 @@ class EditingSession:
         """The panorama at most ``width`` wide, made once per width (display and preview share 2048)."""
         import cv2
 
-        width = min(width, self._image.shape[1])
+        width = min(width, self._width)
         if width not in self._scaled:
-            small = (
-                self._image if width == self._image.shape[1] else cv2.resize(self._image, (width, width // 2), interpolation=cv2.INTER_AREA)
-            )
+            source = self._working if self._working.shape[1] >= width else self.image
+            small = source if width == source.shape[1] else cv2.resize(source, (width, width // 2), interpolation=cv2.INTER_AREA)
             self._scaled[width] = small
         return self._scaled[width]
 
@@ -721,7 +753,7 @@ class EditingSession:
         image = check_panorama(self._video.read(index))
         image.flags.writeable = False
         with self._lock:
-            self._image = image
+            self._working = self._full_image = image
             self._scaled = {}
             self._preview_source = self._downscaled(2 * self._preview_width)
             self._full_result = None
@@ -958,14 +990,14 @@ class EditingSession:
         cached = self._full_result
         if cached is not None and cached[0] == key:
             return cached[1]
-        result = warp(self._image, doc, warn=warn, previous=self._preview_result)  # the preview's weights, when they are these
+        result = warp(self.image, doc, warn=warn, previous=self._preview_result)  # the preview's weights, when they are these
         self._full_result = (key, result)
         return result
 
     def _warp(self, doc: Handles, key: str, full: bool) -> Any:
         from ..raster.pipeline import warp
 
-        if full or self._preview_width == self._image.shape[1]:
+        if full or self._preview_width == self._width:
             return self._full(doc, key, warn=False)
         # the last preview's weights start the solver: a drag changes them little
         return warp(self._preview_source, doc, width=self._preview_width, warn=False, previous=self._preview_result)

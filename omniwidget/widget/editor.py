@@ -258,7 +258,7 @@ class Editor(anywidget.AnyWidget):
             handles=s.handles,
             height=height,
             source=s.display_source(),
-            source_size=[s.image.shape[1], s.image.shape[0]],
+            source_size=list(s.image_size),
             history=s.history,
             status=s.status,
             frame=s.frame,
