@@ -450,11 +450,11 @@ def merge_arcs(
                 cand = middles.near(centre, wide)
                 looked = (centre, wide, cand)
             cand = cand[free[cand]]
-            cand = cand[np.abs(mid[cand] @ normal) < sin_d]  # the midpoint first: it rules out most
+            cand = cand[np.abs(mid.take(cand, axis=0) @ normal) < sin_d]  # the midpoint first: it rules out most
             if cand.size == 0:
                 break
             other = _cross(normal, origin)
-            dots = points[cand] @ np.array([normal, other, origin]).T  # (m, 4, 3)
+            dots = (points.take(cand, axis=0).reshape(-1, 3) @ np.array([normal, other, origin]).T).reshape(-1, 4, 3)
             near = np.abs(dots[:, :2, 0]).max(axis=1) < sin_d
             if polarity:  # the same polarity: the dark side on the same side
                 near &= dots[:, 3, 0] > 0
@@ -534,16 +534,9 @@ class _EndTree:
         self.keys = key[order]
         self.points = every[order]
         self.owner = (order % self.k).astype(np.intp)
-
-    def _runs(self, point: FloatArray, chord: float) -> tuple[list[int], list[int]]:
-        """The first and last keys of the columns of cubes that meet the box of half-side ``chord`` around ``point``."""
-        m, top, cell = self.m, self.m - 1, _GRID_CELL
-        x, y, z = point.tolist()
-        x0, x1 = max(int((x - chord + 1.0) // cell), 0), min(int((x + chord + 1.0) // cell), top)
-        y0, y1 = max(int((y - chord + 1.0) // cell), 0), min(int((y + chord + 1.0) // cell), top)
-        z0, z1 = max(int((z - chord + 1.0) // cell), 0), min(int((z + chord + 1.0) // cell), top)
-        columns = [(cx * m + cy) * m for cx in range(x0, x1 + 1) for cy in range(y0, y1 + 1)]
-        return [c + z0 for c in columns], [c + z1 for c in columns]
+        bounds = np.searchsorted(self.keys, np.arange(self.m**3 + 1))
+        self.starts = bounds[:-1].reshape(self.m, self.m, self.m)  # where each cube's points begin in the sorted order
+        self.stops = bounds[1:].reshape(self.m, self.m, self.m)  # and end
 
     @staticmethod
     def _chord(angle: float) -> float:
@@ -553,11 +546,14 @@ class _EndTree:
     def near(self, point: FloatArray, angle: float) -> NDArray[np.intp]:
         """The arcs with a point within ``angle`` radians (plus :data:`_TREE_MARGIN`) of unit vector ``point``; an arc once per point of it there."""
         chord = self._chord(angle)
-        first, last = self._runs(point, chord)
-        starts = np.searchsorted(self.keys, first, "left")
-        count = np.searchsorted(self.keys, last, "right") - starts
-        total = int(count.sum())
-        found = np.repeat(starts - (np.cumsum(count) - count), count) + np.arange(total)  # the runs' indices, one after another
+        top, cell = self.m - 1, _GRID_CELL
+        x, y, z = point.tolist()
+        x0, x1 = max(int((x - chord + 1.0) // cell), 0), min(int((x + chord + 1.0) // cell), top)
+        y0, y1 = max(int((y - chord + 1.0) // cell), 0), min(int((y + chord + 1.0) // cell), top)
+        z0, z1 = max(int((z - chord + 1.0) // cell), 0), min(int((z + chord + 1.0) // cell), top)
+        starts = self.starts[x0 : x1 + 1, y0 : y1 + 1, z0].ravel()  # each column's run of cubes z0..z1
+        count = self.stops[x0 : x1 + 1, y0 : y1 + 1, z1].ravel() - starts
+        found = np.repeat(starts - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
         near = self.points[found] @ point >= 1.0 - 0.5 * chord * chord  # within the chord: the dot product of unit vectors
         return self.owner[found[near]]
 
@@ -655,6 +651,7 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
         ok &= np.abs(dot(points, circles)) < loose
     i_of, j_of = i_of[ok], j_of[ok]
     bounds = np.searchsorted(i_of, np.arange(k + 1))
+    ends = np.stack([a, b, mid], axis=1)  # (k, 3, 3): the points of each arc tested against a circle
     taken = np.zeros(k, dtype=bool)
     out: list[Arc] = []
     for i in np.argsort(-length).tolist():
@@ -664,9 +661,9 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
         cand = j_of[bounds[i] : bounds[i + 1]]
         cand = cand[~taken[cand]]
         if cand.size:
-            cand = cand[normal[cand] @ normal[i] < 0]
-            near = (np.abs(a[cand] @ normal[i]) < sin_d) & (np.abs(b[cand] @ normal[i]) < sin_d) & (np.abs(mid[cand] @ normal[i]) < sin_d)
-            near &= (np.abs(normal[cand] @ a[i]) < sin_d) & (np.abs(normal[cand] @ b[i]) < sin_d)
+            cand = cand[normal.take(cand, axis=0) @ normal[i] < 0]
+            near = np.abs(ends.take(cand, axis=0).reshape(-1, 3) @ normal[i]).reshape(-1, 3).max(axis=1) < sin_d
+            near &= np.abs(normal.take(cand, axis=0) @ ends[i, :2].T).max(axis=1) < sin_d
             cand = cand[near]
         best, best_overlap = -1, 0.0
         if cand.size:
@@ -712,8 +709,8 @@ def _finish(a: NDArray, b: NDArray, length: NDArray, contrast: NDArray, normal: 
     # covered share of [lo, hi]: the union of the members' intervals
     order = np.argsort(lo_each)
     covered, reach = 0.0, lo
-    for i in order:
-        start, stop = max(float(lo_each[i]), reach), float(hi_each[i])
+    for low, stop in zip(lo_each[order].tolist(), hi_each[order].tolist(), strict=True):
+        start = max(low, reach)
         if stop > start:
             covered += stop - start
             reach = stop
@@ -791,12 +788,12 @@ def suggest_lines(
             raise ValueError(f"{name} must be a {'positive' if positive else 'non-negative'} number, got {value!r}")
     gray = panorama_gray(image)
     arcs = find_arcs(gray, detector=detector, views=views)
+    ends = coords.xyz_to_lonlat(np.array([[arc.start, arc.end] for arc in arcs]).reshape(-1, 2, 3)).tolist()  # all at once
     out = []
-    for arc in arcs:
+    for arc, ((lon0, lat0), (lon1, lat1)) in zip(arcs, ends, strict=True):
         length = arc.length
         if length < min_length or arc.contrast < min_contrast:
             continue
-        (lon0, lat0), (lon1, lat1) = coords.xyz_to_lonlat(np.array([arc.start, arc.end]))
         out.append(
             Suggestion(
                 start=(float(lon0), float(lat0)),
