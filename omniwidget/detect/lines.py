@@ -152,11 +152,7 @@ def panorama_gray(image: NDArray, name: str = "image") -> NDArray[np.uint8]:
     ImageError
         If the image is not a panorama the toolkit reads, or smaller than ``64 x 32``.
     """
-    check_panorama(image, name)
-    if image.shape[0] < MIN_HEIGHT:
-        raise ImageError(
-            f"{name}: {image.shape[1]} x {image.shape[0]} is too small to find lines in (at least {2 * MIN_HEIGHT} x {MIN_HEIGHT})"
-        )
+    _check_image(image, name)
     if image.shape[1] > DETECT_WIDTH:
         import cv2
 
@@ -174,6 +170,15 @@ def panorama_gray(image: NDArray, name: str = "image") -> NDArray[np.uint8]:
         top = float(np.percentile(gray, 99.5)) if gray.size else 1.0
         full = top if top > 1.0 else 1.0
     return np.clip(np.rint(gray * np.float32(255.0 / full)), 0, 255).astype(np.uint8)
+
+
+def _check_image(image: NDArray, name: str = "image") -> None:
+    """:func:`panorama_gray`'s checks alone: raise :class:`~omniwidget.errors.ImageError` where it would."""
+    check_panorama(image, name)
+    if image.shape[0] < MIN_HEIGHT:
+        raise ImageError(
+            f"{name}: {image.shape[1]} x {image.shape[0]} is too small to find lines in (at least {2 * MIN_HEIGHT} x {MIN_HEIGHT})"
+        )
 
 
 # --- the views -----------------------------------------------------------------------
