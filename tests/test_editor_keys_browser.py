@@ -16,7 +16,6 @@ Which commands the keys ran is read from the application's command registry
 from __future__ import annotations
 
 import json
-import time
 
 import pytest
 
@@ -107,9 +106,50 @@ def click_canvas(nb, fx: float = 0.5, fy: float = 0.5) -> None:
     assert focus(nb)["in_editor"], focus(nb)
 
 
-def settle() -> None:
-    """Long enough for a key binding to have run (JupyterLab holds one until the key is released)."""
-    time.sleep(0.8)
+# Keys released since the last press_all (counted on the window, before any handler can stop them), and what the
+# application's command registry still has to do with keys: a chord's first keys (its timer), a modifier's timer,
+# or a key binding on its way to run (JupyterLab holds each until its key is released; counted by wrapping the
+# registry's _executeKeyBinding). Read after a macrotask, so that a binding released by the last keyup has started.
+_JS_RECORD_KEYS = """() => {
+  const c = window.jupyterapp.commands;
+  if (typeof c._executeKeyBinding !== 'function' || !Array.isArray(c._keystrokes) || typeof c._timerID !== 'number'
+      || typeof c._timerModifierID !== 'number')
+    throw new Error('the command registry keeps its pending keys elsewhere: update _JS_RECORD_KEYS');
+  window.__owKeyups = 0;
+  window.__owRunning = 0;
+  window.addEventListener('keyup', () => { window.__owKeyups += 1; }, true);
+  const execute = c._executeKeyBinding.bind(c);
+  c._executeKeyBinding = async (binding) => {
+    window.__owRunning += 1;
+    try { return await execute(binding); } finally { window.__owRunning -= 1; }
+  };
+}"""
+_JS_KEYS_SETTLED = """async () => {
+  await new Promise(resolve => setTimeout(resolve, 0));
+  const c = window.jupyterapp.commands;
+  const pending = {keystrokes: c._keystrokes.length, chord: c._timerID !== 0, modifier: c._timerModifierID !== 0, running: window.__owRunning};
+  return {keyups: window.__owKeyups, ...pending, settled: !pending.keystrokes && !pending.chord && !pending.modifier && !pending.running};
+}"""
+
+
+def press_all(nb, keys) -> None:
+    """Press ``keys`` one after the other, then wait until each was released and the command registry holds none of
+    them (no chord pending, no binding held): whatever they were going to run has run. An event, not a sleep."""
+    nb.page.evaluate("() => { window.__owKeyups = 0; }")
+    for key in keys:
+        nb.page.keyboard.press(key)
+    seen: list[dict] = []
+
+    def settled() -> bool:
+        seen.append(nb.page.evaluate(_JS_KEYS_SETTLED))
+        return seen[-1]["keyups"] >= len(keys) and seen[-1]["settled"]
+
+    bh.wait_until(
+        settled,
+        timeout=20,
+        description=f"the keys {' '.join(keys)} released and no key binding pending",
+        diagnostics=lambda: f"last seen {seen[-1] if seen else None}\n{nb.diagnostics()}",
+    )
 
 
 def test_keys_as_in_jupyterlab(jupyter_server, browser):
@@ -121,6 +161,7 @@ def test_keys_as_in_jupyterlab(jupyter_server, browser):
         page = nb.page
         client = nb.kernel_client()
         page.evaluate(_JS_RECORD_COMMANDS)
+        page.evaluate(_JS_RECORD_KEYS)
         before = cells(nb)["cells"]
         assert [t for t, _ in before] == ["code", "code"]
 
@@ -135,9 +176,7 @@ def test_keys_as_in_jupyterlab(jupyter_server, browser):
         bh.wait_until(lambda: kernel_json(client, "ed.stage") == "draw", timeout=20, description="the draw stage after 'd d'")
         assert "stage Draw (D)" in status_text(nb)
         # ... and the notebook's other command-mode letters do nothing either
-        for key in ("m", "x", "z", "y", "j", "a"):
-            page.keyboard.press(key)
-        settle()
+        press_all(nb, ("m", "x", "z", "y", "j", "a"))
         assert cells(nb)["cells"] == before, "a key typed in the editor changed the notebook"
         assert commands(nb) == [], f"keys typed in the editor ran JupyterLab commands: {commands(nb)}"
         assert focus(nb)["in_editor"]
@@ -145,10 +184,8 @@ def test_keys_as_in_jupyterlab(jupyter_server, browser):
         nb.output('[data-stage="side"]').click()
         bh.wait_until(lambda: kernel_json(client, "ed.stage") == "side", timeout=20, description="the side-by-side stage by its button")
         assert focus(nb)["in_editor"]
-        for key in ("d", "d", "m", "x", "z", "j", "a"):
-            page.keyboard.press(key)
+        press_all(nb, ("d", "d", "m", "x", "z", "j", "a"))
         bh.wait_until(lambda: kernel_json(client, "ed.stage") == "draw", timeout=20, description="the draw stage after 'd d' on a button")
-        settle()
         assert cells(nb)["cells"] == before, "a key typed on the editor's toolbar changed the notebook"
         assert commands(nb) == [], f"keys typed on the editor's toolbar ran JupyterLab commands: {commands(nb)}"
         # 'a' (rectify all lines) and 'y' did nothing to the (empty) handles either
