@@ -36,6 +36,9 @@ NOTEBOOK = [
 ]
 MOVES = 60
 GAP_MS = 16
+#: The live frame against the kernel's result, mean absolute difference in grey levels: measured 0.47 in each of
+#: four runs (software WebGL, JupyterLab, a loaded machine); bound 1.2x (it was 2.0).
+LIVE_GREY = 0.57
 #: Moves of a drag that must each change the image: two moves within one display frame draw once.
 FOLLOWED = 0.9
 
@@ -113,8 +116,8 @@ def test_the_result_follows_the_mouse_and_matches_the_kernels_result(jupyter_ser
         bh.run_in_kernel(kc, "import numpy as np\nnp.save('kernel.npy', ed.preview_result.image)")
         kernel = np.load(jupyter_server.root / "kernel.npy")
         difference = np.abs(frame.astype(np.float64) - kernel[..., :3]).mean()
-        print(f"live frame against the kernel's result: mean absolute difference {difference:.2f} grey levels")
-        assert difference < 2.0, f"the live frame differs from the kernel's result by {difference:.2f} grey levels on average"
+        print(f"live frame against the kernel's result: mean absolute difference {difference:.3f} grey levels")
+        assert difference < LIVE_GREY, f"the live frame differs from the kernel's result by {difference:.3f} grey levels on average"
         moved = np.abs(np.load(jupyter_server.root / "start.npy")[..., :3].astype(np.float64) - kernel[..., :3]).mean()
         assert moved > 4 * difference, f"the drag changed the result by {moved:.2f} grey levels on average: too little to tell"
         nb.screenshot("live-arrow-drag")
