@@ -19,6 +19,7 @@ from scipy.spatial import ConvexHull
 from omniwidget.method import bbw as bbw_module
 from omniwidget.method.bbw import bbw, normalize_rows
 from omniwidget.method.laplacian import bilaplacian, cotangent_laplacian, mass_matrix
+from tests import requires
 
 #: Our weights against ``igl.bbw`` (libigl stops after 100 iterations; it converges well before on these
 #: meshes). Measured 6.3e-14 (icosphere3, lines) to 1.3e-10 (hull700, cage: the worst conditioned), 1.1e-12
@@ -202,7 +203,7 @@ def test_bilaplacian_symmetric_positive_semidefinite(rng):
 
 
 def test_operators_match_libigl():
-    igl = pytest.importorskip("igl")
+    igl = requires.module("igl")
     for v, f in (icosphere(3), hull_sphere(500, seed=4)):
         lap = igl.cotmatrix(v, f)
         assert abs(cotangent_laplacian(v, f) - lap).max() < 1e-10 * abs(lap).max()
@@ -230,7 +231,7 @@ def test_bbw_bounds_constraints_and_optimality(mesh, layout):
 def test_bbw_matches_libigl(mesh, layout):
     from omniwidget.method._igl import igl_bbw
 
-    pytest.importorskip("igl")
+    requires.module("igl")
     v, f = MESHES[mesh]()
     b, bc = layouts(v, f)[layout]
     w = bbw(v, f, b, bc)
@@ -243,7 +244,7 @@ def test_bbw_matches_libigl(mesh, layout):
 def test_bbw_matches_libigl_through_three_levels():
     from omniwidget.method._igl import igl_bbw
 
-    pytest.importorskip("igl")
+    requires.module("igl")
     v, f = icosphere(4)
     assert len(bbw_module._hierarchy(v, f, np.array([0]))) == 3
     b, bc = point_layout(v, 10, seed=11)
@@ -450,7 +451,7 @@ def test_normalize_rows_empty_rows_become_uniform():
 
 # --- the libigl wrapper --------------------------------------------------------------------------------
 def test_igl_bbw_coerces_dtypes_and_layout():
-    pytest.importorskip("igl")
+    requires.module("igl")
     from omniwidget.method._igl import igl_bbw, igl_version
 
     v, f = icosphere(2)
@@ -525,7 +526,7 @@ CVXPY_TOL = 1e-4
 
 @pytest.mark.parametrize("layout", ["points", "lines", "cage"])
 def test_the_fast_solver_equals_the_paper_quadratic_program_solved_by_cvxpy(layout):
-    pytest.importorskip("cvxpy")
+    requires.module("cvxpy")
     v, f = icosphere(2)
     b, bc = layouts(v, f)[layout]
     ours = bbw(v, f, b, bc)
@@ -537,7 +538,7 @@ def test_the_fast_solver_equals_the_paper_quadratic_program_solved_by_cvxpy(layo
 
 
 def test_solver_igl_is_libigl_and_an_unknown_solver_is_named():
-    pytest.importorskip("igl")
+    requires.module("igl")
     from omniwidget.method._igl import igl_bbw
 
     v, f = icosphere(2)

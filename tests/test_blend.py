@@ -15,6 +15,7 @@ from omniwidget.method.mesh import icosphere
 from omniwidget.method.reach import solved, with_reach
 from omniwidget.raster.pipeline import FOLD_WARNING_AREA, BlendWarning, warp
 from omniwidget.sphere import coords
+from tests import requires
 
 W = 2048
 
@@ -169,7 +170,7 @@ def test_weights_match_libigl_on_the_pipelines_mesh_at_1024():
 def _check_weights_match_libigl(width: int) -> None:
     from omniwidget.method._igl import igl_bbw
 
-    pytest.importorskip("igl")
+    requires.module("igl")
     scene, lines = _room_scene(1, 6, KEEP_CLEAR, width)
     result = warp(scene.image, _lines_doc(lines, CageHandle(CAGE), POINT))
     reference = normalize_rows(igl_bbw(result.vertices, result.faces, result.constrained, result.prescribed))

@@ -7,7 +7,9 @@ import cv2
 import numpy as np
 import pytest
 
-pytest.importorskip("anywidget")
+from tests import requires
+
+requires.module("anywidget")
 
 import omniwidget as ow  # noqa: E402
 from omniwidget.document.handles import PointHandle  # noqa: E402

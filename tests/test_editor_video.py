@@ -21,8 +21,9 @@ import omniwidget as ow
 from omniwidget.app.session import EditingSession
 from omniwidget.errors import VideoError
 from omniwidget.sphere.moebius import Moebius
+from tests import requires
 
-av = pytest.importorskip("av")
+av = requires.module("av")
 
 from omniwidget.io.video import VideoReader  # noqa: E402 - after the skip
 

@@ -16,10 +16,11 @@ import numpy as np
 import pytest
 
 from tests import browser_harness as bh
+from tests import requires
 
 pytestmark = pytest.mark.browser
 
-av = pytest.importorskip("av")
+av = requires.module("av")
 
 from tests.test_editor_video import FRAMES, HANDLES, make_clip  # noqa: E402 - after the skip
 

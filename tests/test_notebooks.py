@@ -14,8 +14,10 @@ from pathlib import Path
 
 import pytest
 
-nbformat = pytest.importorskip("nbformat")
-nbclient = pytest.importorskip("nbclient")
+from tests import requires
+
+nbformat = requires.module("nbformat")
+nbclient = requires.module("nbclient")
 
 NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("[0-9][0-9]_*.ipynb"))
 #: A cell that takes longer than this is stuck (each notebook runs in 2-6 s; bench/bench_notebooks.py).

@@ -8,8 +8,10 @@ import warnings
 import numpy as np
 import pytest
 
+from tests import requires
+
 # no environment set here: omniwidget.viz.pane itself chooses EGL where there is no display (the test below)
-pv = pytest.importorskip("pyvista")
+pv = requires.module("pyvista")
 
 import omniwidget as ow  # noqa: E402
 from omniwidget.method.constraints import build_constraints  # noqa: E402
@@ -207,7 +209,7 @@ def test_refinement_rounds_grow_and_end_with_the_results_mesh(result):
 
 # --- the notebook pane ---------------------------------------------------------------------
 def test_pane_on_a_result_shows_a_png_and_recolours(result):
-    pytest.importorskip("ipywidgets")
+    requires.module("ipywidgets")
     shown = pane.WeightsPane(result, 0, backend="static", window_size=SIZE)
     assert shown.backend == "static" and shown.handle == 0
     assert shown._view.value[:8] == b"\x89PNG\r\n\x1a\n"
@@ -222,7 +224,7 @@ def test_pane_on_a_result_shows_a_png_and_recolours(result):
 
 def test_pane_html_backend_exports_a_self_contained_page(result):
     """the trame-vtk export: vtk.js and the scene in one page that fetches nothing (the browser test renders it)."""
-    pytest.importorskip("trame_vtk")
+    requires.module("trame_vtk")
     import html
     import re
 
@@ -246,7 +248,7 @@ def test_auto_backend_is_static_without_trame():
 
 
 def test_pane_follows_the_editors_selection():
-    pytest.importorskip("anywidget")
+    requires.module("anywidget")
     editor = ow.Editor(ow.sample_image(), handles=SCENE, preview_width=512)
     editor.wait()
     shown = pane.WeightsPane(editor, window_size=SIZE, backend="static")
@@ -269,7 +271,7 @@ def test_pane_follows_the_editors_selection():
 
 
 def test_pane_shows_a_message_until_the_editor_has_a_mesh():
-    pytest.importorskip("anywidget")
+    requires.module("anywidget")
     paper = {**SCENE, "options": {"anchor": None}}  # one point, one map: no mesh (with a still background there would be one)
     editor = ow.Editor(ow.sample_image(), handles={**paper, "handles": [POINT]}, preview_width=512)
     shown = pane.WeightsPane(editor, window_size=SIZE, backend="static")

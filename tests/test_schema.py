@@ -31,8 +31,9 @@ from omniwidget.document import handles as handles_module
 from omniwidget.document.handles import Handles
 from omniwidget.document.schema import DRAFT, handles_schema
 from omniwidget.errors import HandlesError
+from tests import requires
 
-jsonschema = pytest.importorskip("jsonschema")
+jsonschema = requires.module("jsonschema")
 
 SCHEMA = handles_schema()
 VALIDATOR = jsonschema.Draft202012Validator(SCHEMA)

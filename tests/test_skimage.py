@@ -5,8 +5,9 @@ import pytest
 
 import omniwidget as ow
 from omniwidget.app.cli import DEMO_HANDLES
+from tests import requires
 
-skimage_transform = pytest.importorskip("skimage.transform")
+skimage_transform = requires.module("skimage.transform")
 
 
 @pytest.fixture(scope="module")
