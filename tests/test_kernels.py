@@ -14,8 +14,9 @@ from omniwidget.raster.blend import blended_inverse, mesh_pixel_weights
 from omniwidget.raster.pipeline import warp
 from omniwidget.raster.warping import PAD, remap_coordinates
 from omniwidget.sphere import coords
+from tests import requires
 
-pytestmark = pytest.mark.skipif(not _kernels.available(), reason="numba is not installed (pip install numba)")
+requires.kernels("numba is not installed (pip install numba), or OMNIWIDGET_NUMBA=0")
 
 W = 512
 

@@ -15,8 +15,9 @@ from omniwidget.raster.pipeline import warp
 from omniwidget.raster.sampled import coarse_step, sampled_coordinates
 from omniwidget.raster.warping import PAD, remap_coordinates
 from omniwidget.sphere import coords
+from tests import requires
 
-pytestmark = pytest.mark.skipif(not _kernels.available(), reason="the sampled map needs the compiled kernels (numba)")
+requires.kernels("the sampled map needs the compiled kernels (numba)")
 
 W = 2048
 CAGE = CageHandle(((-150.0, -20.0), (-120.0, -20.0), (-120.0, 10.0), (-150.0, 10.0)))
