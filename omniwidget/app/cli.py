@@ -328,6 +328,7 @@ def _cmd_warp(args: argparse.Namespace) -> None:
 def _warp_one(args: argparse.Namespace) -> None:
     from ..document.handles import load_handles
     from ..io.images import check_writable, read_panorama, write_bytes
+    from ..raster.strips import STREAM_WIDTH
 
     (source,) = args.input
     _check_output(args.output, _IMAGE_SUFFIXES, "output image")
@@ -335,10 +336,43 @@ def _warp_one(args: argparse.Namespace) -> None:
     handles = load_handles(args.handles)
     image = read_panorama(source, args.fit, width=args.width, warp=True)  # refused before decoding if the warp cannot fit
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
+    if (args.width or image.shape[1]) > STREAM_WIDTH:
+        _warp_in_strips(args, image, handles)
+        return
     result, outputs = _warped_outputs(args, image, handles)
     for path, data in outputs:
         write_bytes(path, data)
     _say(args, f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; {_headline(result)}")
+
+
+def _warp_in_strips(args: argparse.Namespace, image: Any, handles: Any) -> None:
+    """A warp wider than :data:`~omniwidget.raster.strips.STREAM_WIDTH`: the method on its map grid, the output written in strips.
+
+    The image is written before the map (each whole or not at all): a failure writing the map leaves the image.
+    """
+    import numpy as np
+
+    from ..io.images import write_image_strips
+    from ..raster.strips import MAP_WIDTH, warp_in_strips
+
+    made = warp_in_strips(image, handles, width=args.width, order=args.order, warn=False)
+    for message in made.result.warnings:
+        print(f"omniwidget: warning: {message}", file=sys.stderr)
+    height, width = made.shape[:2]
+    show = args.progress or (sys.stderr.isatty() and not args.quiet)
+
+    def progress(rows: int) -> None:
+        if show:
+            end = "\n" if rows == height else ""
+            print(f"\romniwidget: {rows}/{height} rows of {args.output}", end=end, file=sys.stderr, flush=True)
+
+    write_image_strips(args.output, made.shape, made.dtype, made.image_strips(), progress=progress)
+    written = [args.output]
+    if args.map is not None:
+        write_image_strips(args.map, (height, width, 2), np.float32, made.map_strips())
+        written.append(args.map)
+    names = " and ".join(str(p) for p in written)
+    _say(args, f"wrote {names} ({width} x {height}, in strips) in {_elapsed(args)}; {_headline(made.result)} (measured {MAP_WIDTH} wide)")
 
 
 def _written(outputs: Sequence[tuple[Path, bytes]]) -> str:

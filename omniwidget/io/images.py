@@ -17,6 +17,7 @@ import math
 import os
 import struct
 import zlib
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, Literal
@@ -25,12 +26,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import SUPPORTED_DTYPES, check_image, check_panorama, require_regular_file
-from .._files import atomic_write_bytes
+from .._files import atomic_write_bytes, commit, remove_leftovers, temporary_file
 from ..errors import ImageError, NotRegularFileError
 
 __all__ = [
     "FITS",
     "MEMORY_VARIABLE",
+    "STRIP_SUFFIXES",
     "SUPPORTED_DTYPES",
     "WARP_BYTES_PER_PIXEL",
     "WARP_INPUT_COPIES",
@@ -51,6 +53,7 @@ __all__ = [
     "to_equirectangular",
     "write_bytes",
     "write_image",
+    "write_image_strips",
 ]
 
 Fit = Literal["pad", "stretch"]
@@ -382,6 +385,8 @@ def _read_npy(path: Path, data: bytes, header: ImageHeader | None) -> NDArray:
 #: bench/bench_limits.py pixels: 42 bytes per output pixel with the RGB pixel, 12000 x 6000
 #: against 12000 to 6000 wide (bench/RESULTS.md, "Limits (issue 35)").
 WARP_BYTES_PER_PIXEL = 40
+#: Bytes a warp in strips holds per pixel of its strip (the interpolated unit vectors and their four corners, float32).
+STRIP_BYTES_PER_PIXEL = 96
 #: Copies of the input image a warp holds at its peak: the image, and the padded copy being made
 #: (:func:`omniwidget.raster.warping.pad_panorama` concatenates rows, then columns).
 WARP_INPUT_COPIES = 3
@@ -672,12 +677,20 @@ def _needed(header: ImageHeader, *, warp: bool, width: int | None, reduce: int =
     reading = header.file_bytes + 2 * image  # the file, the decoded pixels and their copy in RGB order (or turned)
     if not warp:
         return reading
-    _, pixels = _warp_output(header, width)
+    from ..raster.strips import MAP_WIDTH, STREAM_WIDTH, STRIP_ROWS
+
+    w, pixels = _warp_output(header, width)
     if max(header.width, header.height) // reduce + 2 * PAD < REMAP_LIMIT:
         source = WARP_INPUT_COPIES * image
     else:  # resampled in tiles (remap_panorama): no padded copy, one patch at a time
         source = image + PATCH_PIXELS * header.bytes_per_pixel
-    return max(reading, source + pixels * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel))
+    if w <= STREAM_WIDTH:
+        return max(reading, source + pixels * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel))
+    # made in strips (omniwidget.raster.strips): the warp on the map grid, its unit vectors (12 bytes, twice while
+    # padded), a strip's interpolation, and the output gathered whole where its format is not written in strips
+    grid = MAP_WIDTH * (MAP_WIDTH // 2)
+    strip = STRIP_ROWS * w * STRIP_BYTES_PER_PIXEL
+    return max(reading, source + grid * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel + 24) + strip + pixels * header.bytes_per_pixel)
 
 
 def asked_reduction(header: ImageHeader, width: int | None) -> int:
@@ -1126,3 +1139,134 @@ def write_image(path: str | os.PathLike[str], image: NDArray) -> None:
     """
     path = Path(path)
     write_bytes(path, encode_image(path, image))
+
+
+#: Suffixes :func:`write_image_strips` writes strip by strip (the others are gathered whole first).
+STRIP_SUFFIXES = (".npy", ".tif", ".tiff")
+#: The side of a TIFF written in strips' tiles.
+TIFF_TILE = 256
+
+
+def _tiles(strips: Iterable[NDArray], shape: tuple[int, ...], dtype: np.dtype, side: int) -> Iterator[NDArray]:
+    """The tiles of an image given as strips of any rows, row of tiles by row of tiles, left to right (for tifffile)."""
+    band = np.zeros((side, *shape[1:]), dtype)
+    filled = 0
+    for strip in strips:
+        at = 0
+        while at < strip.shape[0]:
+            take = min(side - filled, strip.shape[0] - at)
+            band[filled : filled + take] = strip[at : at + take]
+            filled, at = filled + take, at + take
+            if filled == side:
+                yield from _row_of_tiles(band, side)
+                filled = 0
+    if filled:
+        band[filled:] = 0
+        yield from _row_of_tiles(band, side)
+
+
+def _row_of_tiles(band: NDArray, side: int) -> Iterator[NDArray]:
+    width = band.shape[1]
+    for c0 in range(0, width, side):
+        tile = band[:, c0 : c0 + side]
+        if tile.shape[1] < side:  # the last tile of a row, zero-padded as tifffile wants
+            tile = np.concatenate([tile, np.zeros((side, side - tile.shape[1], *band.shape[2:]), band.dtype)], axis=1)
+        yield np.ascontiguousarray(tile)
+
+
+def write_image_strips(
+    path: str | os.PathLike[str],
+    shape: tuple[int, ...],
+    dtype: np.dtype | type,
+    strips: Iterable[NDArray],
+    *,
+    progress: Callable[[int], None] | None = None,
+) -> None:
+    """Write an image given as strips of rows, whole or not at all, holding one strip at a time where the format allows.
+
+    ``.npy`` is written into a memory-mapped file and TIFF (BigTIFF, deflate level 1) row
+    by row as the strips come, so memory holds one strip; PNG, JPEG and the others are
+    gathered into one array and encoded (OpenCV encodes whole images). Written to a hidden
+    temporary file beside ``path`` and renamed over it at the end, synced (as
+    :func:`write_image`); on any error, Ctrl+C included, the temporary file is removed.
+
+    Parameters
+    ----------
+    path : path-like
+        The format follows the suffix, as :func:`write_image`.
+    shape : tuple of int
+        The whole image's, ``(H, W[, C])``.
+    dtype : numpy.dtype
+    strips : iterable of ndarray
+        Rows top to bottom, each ``(rows, W[, C])``; their rows must add up to ``H``.
+    progress : callable, optional
+        ``progress(rows_written)`` after each strip.
+
+    Raises
+    ------
+    ImageError
+        If the image cannot be written there (:func:`check_writable`), the strips do not
+        make the shape, or the file cannot be written.
+    """
+    path = Path(path)
+    shape, dtype = tuple(int(s) for s in shape), np.dtype(dtype)
+    check_writable(path, np.empty((0, *shape[1:]), dtype))
+    suffix = path.suffix.lower()
+
+    def checked() -> Iterator[NDArray]:
+        done = 0
+        for strip in strips:
+            if strip.shape[1:] != shape[1:] or strip.dtype != dtype or done + strip.shape[0] > shape[0]:
+                raise ImageError(f"{path}: a strip of {strip.shape} {strip.dtype} does not fit an image of {shape} {dtype} at row {done}")
+            done += strip.shape[0]
+            yield strip
+            if progress is not None:
+                progress(done)
+        if done != shape[0]:
+            raise ImageError(f"{path}: the strips gave {done} of the image's {shape[0]} rows")
+
+    if suffix not in STRIP_SUFFIXES:
+        image = np.empty(shape, dtype)
+        row = 0
+        for strip in checked():
+            image[row : row + strip.shape[0]] = strip
+            row += strip.shape[0]
+        write_image(path, image)
+        return
+    remove_leftovers(path)
+    fd, tmp = temporary_file(path)
+    try:
+        if suffix == ".npy":
+            out = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=shape)
+            row = 0
+            for strip in checked():
+                out[row : row + strip.shape[0]] = strip
+                row += strip.shape[0]
+            out.flush()
+            del out
+        else:
+            import tifffile
+
+            photometric = "rgb" if len(shape) == 3 and shape[2] in (3, 4) else "minisblack"
+            extras = "unassalpha" if len(shape) == 3 and shape[2] in (2, 4) else None
+            tifffile.imwrite(
+                tmp,
+                _tiles(checked(), shape, dtype, TIFF_TILE),
+                shape=shape,
+                dtype=dtype,
+                bigtiff=True,
+                photometric=photometric,
+                extrasamples=extras,
+                tile=(TIFF_TILE, TIFF_TILE),
+                compression="zlib",
+                compressionargs={"level": 1},
+            )
+        commit(fd, tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise ImageError(f"{path}: cannot write the file ({exc.strerror or exc})") from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    finally:
+        os.close(fd)

@@ -387,9 +387,14 @@ def _remap_patch(
 
     Returns False, writing nothing, when that patch is too large (:func:`remap_panorama`).
     """
-    chosen = (at if where is None else at[where]).reshape(-1, 2)
-    low = np.floor(np.nanmin(chosen, axis=0)).astype(np.int64) - _MARGIN
-    high = np.ceil(np.nanmax(chosen, axis=0)).astype(np.int64) + _MARGIN + 1
+    chosen = at if where is None else at[where]  # (h, w, 2), or (n, 2)
+    x, y = chosen[..., 0], chosen[..., 1]
+    lowest, highest = np.array([x.min(), y.min()]), np.array([x.max(), y.max()])  # not nanmin (5x dearer): NaN is rare
+    if not (np.isfinite(lowest).all() and np.isfinite(highest).all()):
+        finite = chosen.reshape(-1, 2)[np.isfinite(chosen.reshape(-1, 2)).all(axis=1)]
+        lowest, highest = (finite.min(axis=0), finite.max(axis=0)) if len(finite) else (np.zeros(2), np.zeros(2))
+    low = np.floor(lowest).astype(np.int64) - _MARGIN
+    high = np.ceil(highest).astype(np.int64) + _MARGIN + 1
     # even: OpenCV rounds halves to even, an odd move would change that; samples off the source keep its border
     x0, y0 = (int(v) for v in np.clip(low, 0, np.array(shape[1::-1]) - 1) & ~1)
     x1, y1 = max(min(int(high[0]), shape[1]), x0 + 1), max(min(int(high[1]), shape[0]), y0 + 1)
