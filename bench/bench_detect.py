@@ -34,6 +34,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -111,8 +112,8 @@ def photos(folder: Path, args: argparse.Namespace) -> None:
             if path.name != args.profile:
                 continue
             calls: tuple[tuple[str, Callable[[], object]], ...] = (
-                ("suggest_lines", lambda image=image: ow.suggest_lines(image)),
-                ("level", lambda image=image: _level(image)),
+                ("suggest_lines", partial(ow.suggest_lines, image)),
+                ("level", partial(_level, image)),
             )
             for what, call in calls:
                 profile = cProfile.Profile()
@@ -120,10 +121,10 @@ def photos(folder: Path, args: argparse.Namespace) -> None:
                 print(f"{path.name}: {what}")
                 pstats.Stats(profile).sort_stats("cumulative").print_stats(25)
             continue
-        runs = {
-            "plain detector, 6 faces": lambda image=image: plain(image, args.detector),
-            "suggest_lines": lambda image=image: ow.suggest_lines(image, detector=args.detector),
-            "level": lambda image=image: _level(image),
+        runs: dict[str, Callable[[], object]] = {
+            "plain detector, 6 faces": partial(plain, image, args.detector),
+            "suggest_lines": partial(ow.suggest_lines, image, detector=args.detector),
+            "level": partial(_level, image),
         }
         print(f"{path.name} ({image.shape[1]} x {image.shape[0]}), medians of {args.repeat} runs in turns")
         medians = report(timed(runs, args.repeat), "plain detector, 6 faces", "    ")
