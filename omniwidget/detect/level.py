@@ -397,15 +397,16 @@ def _scores(
     cap, polar : float
         The sine of :data:`INLIER_DISTANCE` and the cosine of :data:`POLAR_CAP`.
     """
-    dots = np.abs(normals @ v)
+    product = lambda u: np.einsum("ij,jk->ik", u, v)  # noqa: E731 - numpy's loop: BLAS in threads stalls on these thin products when the cores are busy
+    dots = np.abs(product(normals))
     rows, cols = np.nonzero(dots < cap)  # a vote needs arcsin(x) < cap, so x < cap: these are all the voters and more
     r = np.arcsin(np.clip(dots[rows, cols], 0.0, 1.0))
-    start = (ends_a @ v)[rows, cols]
-    t = np.arctan2((along @ v)[rows, cols], start)  # the angle along each circle of the point nearest to v
+    start = product(ends_a)[rows, cols]
+    t = np.arctan2(product(along)[rows, cols], start)  # the angle along each circle of the point nearest to v
     opposite = np.where(t > 0, t - np.pi, t + np.pi)  # and of the point nearest to -v
     span = spans[rows]
     passes = ((t > 0) & (t < span)) | ((opposite > 0) & (opposite < span))
-    far = ~passes & (np.maximum(np.abs(start), np.abs((ends_b @ v)[rows, cols])) < polar)
+    far = ~passes & (np.maximum(np.abs(start), np.abs(product(ends_b)[rows, cols])) < polar)
     vote = (r < INLIER_SIGMAS * sigma[rows]) & (r < cap) & far
     return np.asarray(np.bincount(cols[vote], weights=1.0 / sigma[rows[vote]], minlength=v.shape[1]), dtype=np.float64)
 
