@@ -3,13 +3,14 @@
 
 Usage::
 
-    python bench/bench_any_size.py                          # 8192, 16384, 34000 and 64000 wide, RGB
-    python bench/bench_any_size.py --widths 8192 34000 --full-up-to 8192
+    python bench/bench_any_size.py                          # 8192, 16384, 34000 and 64000 wide, RGB (full width up to 34000)
+    python bench/bench_any_size.py --widths 34000 64000 --full-up-to 64000   # full width in strips too
 
 For each width W a room (``family_scene("mixed", 7)``) is rendered at 4096, enlarged to W
 in strips (bilinear) into a memory-mapped ``.npy`` and written as a JPEG (quality 95);
 then ``omniwidget warp`` runs in a fresh process on each file, to ``--width 4096`` and,
-for W up to ``--full-up-to``, to its full width. Each figure is one run: the command's
+for W up to ``--full-up-to``, to its full width (wider than
+:data:`~omniwidget.raster.strips.STREAM_WIDTH`: made in strips, written as a tiled TIFF). Each figure is one run: the command's
 wall time and its peak resident memory (``ru_maxrss`` of the child). The ``.npy`` is
 decoded whole (a plain array), the JPEG at the size asked (1/2 to 1/8 by libjpeg's DCT
 scaling, :func:`omniwidget.io.images.asked_reduction`); a source 32,767 px or wider is
@@ -77,10 +78,11 @@ def run(source: Path, handles: Path, width: int, out: Path) -> tuple[float, floa
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--widths", type=int, nargs="+", default=[8192, 16384, 34000, 64000])
-    parser.add_argument("--full-up-to", type=int, default=16384, help="warp to the full width only up to this width")
+    parser.add_argument("--full-up-to", type=int, default=34000, help="warp to the full width only up to this width")
     args = parser.parse_args()
 
     from omniwidget.io.images import memory_needed
+    from omniwidget.raster.strips import STREAM_WIDTH
 
     print("| input | to | time | peak | estimate |")
     print("| --- | --- | --- | --- | --- |")
@@ -91,7 +93,8 @@ def main() -> None:
             for source in (npy, jpg):
                 for to in [4096] + ([width] if width <= args.full_up_to else []):
                     try:
-                        seconds, peak = run(source, handles, to, folder / "out.png")
+                        out = folder / ("out.tif" if to > STREAM_WIDTH else "out.png")  # a TIFF is written strip by strip
+                        seconds, peak = run(source, handles, to, out)
                         figures = f"{seconds:.1f} s | {peak:,.0f} MB"
                     except RuntimeError as exc:
                         figures = f"failed: {exc} | –"
