@@ -63,7 +63,7 @@ import numpy as np  # noqa: E402
 from omniwidget.document.handles import Handles, Options, PointHandle  # noqa: E402
 from omniwidget.evaluate.quality import cage_fidelity, kink, point_fidelity, point_reach_profile, straightness  # noqa: E402
 from omniwidget.evaluate.scenes import FAMILIES, family_scene  # noqa: E402
-from omniwidget.method.reach import SHIFT_FREE, default_reach  # noqa: E402
+from omniwidget.method.reach import default_reach  # noqa: E402
 from omniwidget.raster import untangle  # noqa: E402
 from omniwidget.raster.pipeline import warp  # noqa: E402
 from omniwidget.sphere import coords  # noqa: E402
@@ -71,6 +71,8 @@ from omniwidget.sphere import coords  # noqa: E402
 MODES = {"default": Options(), "paper": Options(rectify="all", anchor=None)}
 #: A marked line continues when its scene line is longer by at least this (degrees).
 CONTINUES = 0.5
+#: Degrees: a point handle moved less is counted as held still in the reach table.
+STILL = 0.01
 
 
 def measure(image: np.ndarray, doc: Handles, truth: dict[str, Any]) -> dict[str, Any]:
@@ -137,14 +139,13 @@ def reach(result: Any, index: int) -> dict[str, Any]:
 
 
 def reach_table(records: list[dict[str, Any]]) -> str:
-    """Rows per family and mode with point handles, the points held still (moved less than
-    :data:`~omniwidget.method.reach.SHIFT_FREE`) apart from the moved ones: the asked turn and zoom against what is
-    seen at a third of the reach (where they should hold, to 10% and 2°) and at the reach (where they should be gone).
+    """Rows per family and mode with point handles, the points held still (moved less than :data:`STILL`) apart
+    from the moved ones: the asked turn and zoom against what is seen at a third of the reach (where they should
+    hold, to 10% and 2°) and at the reach (where they should be gone).
 
-    A moved point's turn and zoom keep to its shift's weight (:func:`omniwidget.method.reach.with_reach`); only its
-    zoom is measured here: the turn is measured as a ring's bearing about the target against the content's about the
-    position, and where the shift's weight falls the two differ by the shift itself (its zoom and turn at the centre
-    are the main table's point columns).
+    Only a moved point's zoom is measured here: the turn is measured as a ring's bearing about the target against
+    the content's about the position, and where the shift fades the two differ by the shift itself (its zoom and
+    turn at the centre are the main table's point columns).
     """
     head = [
         "family",
@@ -166,7 +167,7 @@ def reach_table(records: list[dict[str, Any]]) -> str:
                 for r in records
                 if r["family"] == family and r["mode"] == mode
                 for p in r["points"]
-                if (p["moved"] < SHIFT_FREE) == still
+                if (p["moved"] < STILL) == still
             ]
             if not points:
                 continue
