@@ -27,7 +27,7 @@ from ..sphere import coords
 from .pipeline import Result, warp
 from .warping import PAD, Order, check_warp_arguments, coordinates_lonlat, pad_panorama, remap_panorama
 
-__all__ = ["MAP_WIDTH", "STREAM_WIDTH", "STRIP_ROWS", "Strips", "strip_coordinates", "warp_in_strips"]
+__all__ = ["MAP_WIDTH", "STREAM_WIDTH", "STRIP_ROWS", "Strips", "warp_in_strips"]
 
 #: The command line makes outputs wider than this in strips (:func:`warp_in_strips`).
 STREAM_WIDTH = 16384
@@ -86,30 +86,6 @@ class Strips:
             yield coordinates_lonlat(self.coordinates(band), self._image.shape[1], np.float32)
 
 
-def strip_coordinates(grid: NDArray[np.float32], src_width: int, width: int, rows: slice) -> NDArray[np.float32]:
-    """Source coordinates of output rows ``rows`` of a ``width`` wide output, from the map grid's.
-
-    Parameters
-    ----------
-    grid : ndarray of float32, shape (h, 2h, 2)
-        ``(x, y) + PAD`` source pixel coordinates of a coarser output grid
-        (:attr:`Result.coordinates`).
-    src_width : int
-        The source's width.
-    width : int
-        The output's width (even).
-    rows : slice
-        Output rows, ``start`` to ``stop`` (step 1).
-
-    Returns
-    -------
-    ndarray of float32, shape (rows, width, 2)
-        ``(x, y) + PAD``: the grid's directions interpolated bilinearly as unit vectors at
-        each output pixel centre, normalised, as source pixel coordinates.
-    """
-    return _interpolated(_grid_vectors(grid, src_width), grid.shape[1], src_width, width, rows)
-
-
 def _grid_vectors(grid: NDArray[np.float32], src_width: int) -> NDArray[np.float32]:
     """The map grid's directions as unit vectors, float32 (h + 2, w + 2, 3): padded by one pixel over the seam and the poles."""
     vectors = np.empty((*grid.shape[:2], 3), np.float32)
@@ -119,7 +95,11 @@ def _grid_vectors(grid: NDArray[np.float32], src_width: int) -> NDArray[np.float
 
 
 def _interpolated(vectors: NDArray[np.float32], w: int, src_width: int, width: int, rows: slice) -> NDArray[np.float32]:
-    """:func:`strip_coordinates` from the grid's unit vectors padded by one pixel (over the seam and the poles)."""
+    """Source coordinates of output rows ``rows`` of a ``width`` wide output, float32 (rows, width, 2).
+
+    The grid's unit vectors (padded by one pixel over the seam and the poles, :func:`_grid_vectors`; the grid ``w``
+    wide) interpolated bilinearly at each output pixel centre, normalised, as ``(x, y) + PAD`` source pixel coordinates.
+    """
     scale = w / width
     u = (np.arange(width) + 0.5) * scale - 0.5 + 1.0  # in the padded grid
     v = (np.arange(rows.start, rows.stop) + 0.5) * scale - 0.5 + 1.0
