@@ -35,7 +35,7 @@ from ..errors import LevelError
 from ..method.constraints import build_constraints
 from ..sphere import coords
 from ..sphere.moebius import Moebius
-from .lines import DETECT_WIDTH, Suggestion, _check_image, suggest_lines
+from .lines import DETECT_WIDTH, Suggestion, check_detectable, suggest_lines
 
 __all__ = ["LEVEL_ID", "Level", "level", "level_document", "level_handle", "tilt_rotation", "up_to_pitch_roll"]
 
@@ -461,7 +461,7 @@ def level(
     if suggestions is None:
         suggestions = suggest_lines(image, max_lines=None)
     else:
-        _check_image(image)  # the same checks of the image (not its grey copy: the suggestions are found)
+        check_detectable(image)  # the same checks of the image (not its grey copy: the suggestions are found)
     too_few = "found {found} vertical edge{s}, need at least {need}: the panorama shows too few vertical lines to level it"
     candidates = [s for s in suggestions if s.length >= MIN_EDGE_LENGTH]
     if candidates:

@@ -37,6 +37,7 @@ __all__ = [
     "Arc",
     "Suggestion",
     "View",
+    "check_detectable",
     "cube_views",
     "detect_segments",
     "find_arcs",
@@ -152,7 +153,7 @@ def panorama_gray(image: NDArray, name: str = "image") -> NDArray[np.uint8]:
     ImageError
         If the image is not a panorama the toolkit reads, or smaller than ``64 x 32``.
     """
-    _check_image(image, name)
+    check_detectable(image, name)
     if image.shape[1] > DETECT_WIDTH:
         import cv2
 
@@ -172,8 +173,16 @@ def panorama_gray(image: NDArray, name: str = "image") -> NDArray[np.uint8]:
     return np.clip(np.rint(gray * np.float32(255.0 / full)), 0, 255).astype(np.uint8)
 
 
-def _check_image(image: NDArray, name: str = "image") -> None:
-    """:func:`panorama_gray`'s checks alone: raise :class:`~omniwidget.errors.ImageError` where it would."""
+def check_detectable(image: NDArray, name: str = "image") -> None:
+    """:func:`panorama_gray`'s checks alone: raise :class:`~omniwidget.errors.ImageError` where it would.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, 2H[, C])
+        A panorama, at least ``2 MIN_HEIGHT x MIN_HEIGHT``.
+    name : str
+        What the message calls it.
+    """
     check_panorama(image, name)
     if image.shape[0] < MIN_HEIGHT:
         raise ImageError(
