@@ -45,10 +45,16 @@ FOLLOWED = 0.9
 
 def live_frame(nb, under: np.ndarray) -> np.ndarray:
     """The result as the live drag shows it: ``under`` (the result before the drag, RGB) with the live canvas over its region."""
-    url = nb.page.evaluate("() => document.querySelector('.ow-editor canvas.ow-live').toDataURL('image/png')")
+    # the canvas, its region and its step read at once, in the page: a basis or a result arriving meanwhile draws a
+    # coarser frame (and the full one a rest later), so the full frame is waited for here, not assumed
+    read = """() => { const root = document.querySelector('.ow-editor');
+        return [root.dataset.liveStep, root.dataset.liveRegion, root.querySelector('canvas.ow-live').toDataURL('image/png')]; }"""
+    _, region_json, url = bh.wait_until(
+        lambda: (got := nb.page.evaluate(read))[0] == "1" and got, timeout=30, description="the live frame in full"
+    )
     png = base64.b64decode(url.split(",", 1)[1])
     patch = cv2.cvtColor(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
-    region = json.loads(nb.output(".ow-editor").first.get_attribute("data-live-region"))
+    region = json.loads(region_json)
     assert patch.shape[:2] == (region["height"], region["width"])
     (row, col), size = region["origin"], region["size"]
     assert under.shape[1] == size
