@@ -111,12 +111,14 @@ def test_suggestions_on_held_out_rooms_have_the_precision_and_recall_asked():
     for seed in range(100, 106):
         scene = _room(seed)
         c, t, f, n, e = _match(scene, suggest_lines(scene.image, max_lines=None))
-        assert c / t >= 0.8 and f / n >= 0.6, f"seed {seed}: precision {c / t:.3f}, recall {f / n:.3f}"
+        # the worst room measured 0.920 and 0.750
+        assert c / t >= 0.9 and f / n >= 0.72, f"seed {seed}: precision {c / t:.3f}, recall {f / n:.3f}"
         correct, total, found, lines, ends = correct + c, total + t, found + f, lines + n, ends + e
-    assert correct / total >= 0.9, f"precision {correct / total:.3f}"
-    assert found / lines >= 0.7, f"recall {found / lines:.3f}"
-    assert len(ends) >= 20 and np.mean(np.array(ends) <= 1.0) >= 0.9, f"endpoints within 1°: {np.mean(np.array(ends) <= 1.0):.3f}"
-    assert np.median(ends) <= 0.5
+    # measured on these six rooms: precision 0.943, recall 0.880, endpoints within 1° 0.934, median 0.186°
+    assert correct / total >= 0.93, f"precision {correct / total:.3f}"
+    assert found / lines >= 0.86, f"recall {found / lines:.3f}"
+    assert len(ends) >= 20 and np.mean(np.array(ends) <= 1.0) >= 0.92, f"endpoints within 1°: {np.mean(np.array(ends) <= 1.0):.3f}"
+    assert np.median(ends) <= 0.22
 
 
 def test_the_twelve_edges_are_found_and_nothing_else_in_a_room_without_grid():
@@ -225,16 +227,18 @@ def _true_up(scene) -> np.ndarray:
 
 
 def test_the_tilt_of_held_out_rooms_is_found_within_a_third_of_a_degree():
+    """Seeds 200-207 (tilts up to 20°): measured at most 0.050°, median 0.018°; bounded at 1.2x (a bias of 0.11° fails)."""
     errors = []
     for seed in range(200, 208):
         scene = _room(seed)
         found = level(scene.image)
         error = float(coords.angular_distance(found.up, coords.xyz_to_lonlat(_true_up(scene))))
         errors.append(error)
-        assert error <= 0.3, f"seed {seed}: pitch {scene.pitch:.2f} roll {scene.roll:.2f}, found {found.pitch:.2f} {found.roll:.2f}"
+        assert error <= 0.06, f"seed {seed}: pitch {scene.pitch:.2f} roll {scene.roll:.2f}, found {found.pitch:.2f} {found.roll:.2f}"
         assert found.pitch == pytest.approx(scene.pitch, abs=0.4) and found.roll == pytest.approx(scene.roll, abs=0.4)
         assert found.tilt == pytest.approx(_tilt(scene.pitch, scene.roll), abs=0.3)
     assert max(errors) > 0  # measured, not read back
+    assert float(np.median(errors)) <= 0.022, errors
 
 
 @pytest.mark.parametrize(("pitch", "roll"), [(20.0, 0.0), (0.0, -20.0), (-14.0, 14.0), (3.0, 1.0)])
@@ -402,14 +406,18 @@ def test_levelling_the_sample_twice_leaves_it_level():
     assert level(levelled).tilt < 0.2
 
 
+#: The tilts the README quotes for the CC0 panoramas (degrees; measured 0.134, 0.218, 1.177, 0.095).
+CC0_TILTS = {"hotel_room": 0.13, "studio_office": 0.22, "courtyard": 1.18, "city_parking": 0.09}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["hotel_room", "studio_office", "courtyard", "city_parking"])
 def test_the_cc0_panoramas_level_and_stay_level(name):
     # the shipped copies of ../shared/data's CC0 panoramas (the same pixels): the gallery's, and the bundled hotel room
     image = ow.sample_image() if name == "hotel_room" else ow.read_image(GALLERY / f"{name}.jpg")
     first = level(image)
-    assert first.tilt < 5.0 and len(first.edges) >= 10
-    assert level(ow.warp(image, first.handles()).image).tilt < 0.2
+    assert first.tilt == pytest.approx(CC0_TILTS[name], abs=0.02) and len(first.edges) >= 30  # 34-57 edges
+    assert level(ow.warp(image, first.handles()).image).tilt < 0.12  # levelled once: measured 0.061-0.102°
 
 
 @pytest.mark.slow
@@ -450,10 +458,10 @@ def test_twenty_held_out_rooms_each_for_suggestions_and_tilt():
         scene = _room(seed)
         c, t, f, n, e = _match(scene, suggest_lines(scene.image, max_lines=None))
         correct, total, found, lines, ends = correct + c, total + t, found + f, lines + n, ends + e
-    assert correct / total >= 0.9 and found / lines >= 0.7, (correct / total, found / lines)
-    assert np.mean(np.array(ends) <= 1.0) >= 0.8 and np.median(ends) <= 0.5
+    assert correct / total >= 0.925 and found / lines >= 0.86, (correct / total, found / lines)
+    assert np.mean(np.array(ends) <= 1.0) >= 0.85 and np.median(ends) <= 0.25
     errors = [float(coords.angular_distance(level(scene.image).up, coords.xyz_to_lonlat(_true_up(scene)))) for scene in map(_room, range(200, 220))]
-    assert max(errors) <= 0.3, errors
+    assert max(errors) <= 0.12 and float(np.median(errors)) <= 0.031, errors
 
 
 def test_detect_is_in_the_package_namespace():
