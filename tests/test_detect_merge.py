@@ -22,10 +22,13 @@ from omniwidget.detect import lines
 from omniwidget.detect.level import INLIER_SIGMAS, _passes_by, _scores
 from omniwidget.detect.lines import BAND_DISTANCE, MAX_ARC, MERGE_DISTANCE, MERGE_GAP, SNAP_REACH, Arc, _unit
 from omniwidget.evaluate.scenes import synthetic_room
+from tests import requires
 
 FloatArray = NDArray[np.float64]
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
-PHOTOS = sorted(DATA.glob("*.jpg")) if DATA.is_dir() else []
+#: The panoramas of ../shared/data (test inputs beside the checkout), named so that a missing one is said, not
+#: collected as nothing.
+PHOTOS = ("brooklyn_street_12k", "city_parking", "courtyard", "grabodrertorv", "hotel_room", "lamppost", "studio_office")
 
 # --- the reference: the loops as they were before issue 38, part 5 ----------------------
 
@@ -367,19 +370,18 @@ def test_suggestions_match_the_loops_on_rooms(seed):
 
 
 def test_suggestions_match_the_loops_on_a_photo():
-    path = DATA / "hotel_room.jpg"
-    if not path.exists():
-        pytest.skip(f"{path} is not there")
-    from omniwidget.io.images import read_panorama
-
-    assert _same_suggestions(read_panorama(path)) > 100
+    # the bundled hotel room (the CC0 copy of ../shared/data's, the same pixels): always there
+    assert _same_suggestions(ow.sample_image()) > 100
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", PHOTOS, ids=[p.name for p in PHOTOS])
-def test_suggestions_match_the_loops_on_every_photo(path):
+@pytest.mark.parametrize("name", PHOTOS)
+def test_suggestions_match_the_loops_on_every_photo(name):
     from omniwidget.io.images import read_panorama
 
+    path = DATA / f"{name}.jpg"
+    if not path.exists():  # skipped on a checkout alone; a failure where everything must be there (CI)
+        requires.missing(f"{path} is a test input beside the checkout (../shared/data)")
     assert _same_suggestions(read_panorama(path)) > 100
 
 
