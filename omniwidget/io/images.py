@@ -1184,8 +1184,9 @@ def write_image_strips(
 ) -> None:
     """Write an image given as strips of rows, whole or not at all, holding one strip at a time where the format allows.
 
-    ``.npy`` is written into a memory-mapped file and TIFF (BigTIFF, deflate level 1) row
-    by row as the strips come, so memory holds one strip; PNG, JPEG and the others are
+    ``.npy`` is written into a memory-mapped file and TIFF (BigTIFF, tiles of
+    :data:`TIFF_TILE` pixels, deflate level 1) a row of tiles at a time as the strips come,
+    so memory holds about one strip; PNG, JPEG and the others are
     gathered into one array and encoded (OpenCV encodes whole images). Written to a hidden
     temporary file beside ``path`` and renamed over it at the end, synced (as
     :func:`write_image`); on any error, Ctrl+C included, the temporary file is removed.
@@ -1225,25 +1226,24 @@ def write_image_strips(
         if done != shape[0]:
             raise ImageError(f"{path}: the strips gave {done} of the image's {shape[0]} rows")
 
-    if suffix not in STRIP_SUFFIXES:
-        image = np.empty(shape, dtype)
+    def fill(out: NDArray) -> NDArray:
         row = 0
         for strip in checked():
-            image[row : row + strip.shape[0]] = strip
+            out[row : row + strip.shape[0]] = strip
             row += strip.shape[0]
-        write_image(path, image)
+        return out
+
+    if suffix not in STRIP_SUFFIXES:
+        write_image(path, fill(np.empty(shape, dtype)))
         return
     remove_leftovers(path)
     fd, tmp = temporary_file(path)
     try:
         if suffix == ".npy":
-            out = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=shape)
-            row = 0
-            for strip in checked():
-                out[row : row + strip.shape[0]] = strip
-                row += strip.shape[0]
-            out.flush()
-            del out
+            mapped = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=shape)
+            fill(mapped)
+            mapped.flush()
+            del mapped
         else:
             import tifffile
 
