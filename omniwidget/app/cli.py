@@ -360,12 +360,7 @@ def _warp_in_strips(args: argparse.Namespace, image: Any, handles: Any) -> None:
         print(f"omniwidget: warning: {message}", file=sys.stderr)
     height, width = made.shape[:2]
     show = args.progress or (sys.stderr.isatty() and not args.quiet)
-
-    def progress(rows: int) -> None:
-        if show:
-            end = "\n" if rows == height else ""
-            print(f"\romniwidget: {rows}/{height} rows of {args.output}", end=end, file=sys.stderr, flush=True)
-
+    progress = (lambda rows: _progress_bar(rows, height, "rows")) if show else None
     write_image_strips(args.output, made.shape, made.dtype, made.image_strips(), progress=progress)
     written = [args.output]
     if args.map is not None:
@@ -418,11 +413,11 @@ def _frame_outputs(args: argparse.Namespace) -> list[Path]:
     return outputs
 
 
-def _progress_bar(done: int, total: int) -> None:
+def _progress_bar(done: int, total: int, what: str = "frames") -> None:
     width = 30
     filled = round(width * done / total)
     end = "\n" if done == total else ""
-    print(f"\romniwidget: [{'#' * filled}{'.' * (width - filled)}] {done}/{total} frames", end=end, file=sys.stderr, flush=True)
+    print(f"\romniwidget: [{'#' * filled}{'.' * (width - filled)}] {done}/{total} {what}", end=end, file=sys.stderr, flush=True)
 
 
 def _warp_frames(args: argparse.Namespace) -> None:

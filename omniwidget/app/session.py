@@ -172,6 +172,19 @@ def _digest(data: bytes | memoryview) -> str:
     return hashlib.blake2b(data, digest_size=6).hexdigest()
 
 
+def _open(path: Path, preview_width: int) -> tuple[NDArray, int]:
+    """The panorama at ``path`` and its reduction: a JPEG wider than :data:`LAZY_WIDTH` decoded reduced to what the editor shows."""
+    from ..detect import DETECT_WIDTH
+
+    header = image_header(path)
+    if header is not None and max(header.width, header.height) > LAZY_WIDTH:
+        needed = max(DISPLAY_WIDTH, 2 * preview_width, DETECT_WIDTH)
+        reduced = asked_reduction(header, needed)
+        if reduced > 1:
+            return read_image(path, width=needed), reduced
+    return read_image(path), 1
+
+
 def _autosave_name(image_path: Path | None, image: NDArray) -> str:
     """The autosave's name away from the image: the image's name and a digest of its path, or of an array's pixels."""
     if image_path is not None:
@@ -575,7 +588,7 @@ class EditingSession:
                 self.frame = _frame_index(self._video, frame, time)
                 image = self._video.read(self.frame)
             else:
-                image = self._open(Path(image), whole_number(preview_width, "preview_width", minimum=2, even=True))
+                image, self._reduced = _open(Path(image), whole_number(preview_width, "preview_width", minimum=2, even=True))
         else:
             self._image_path = None
         if self._video is None and (frame is not None or time is not None):
@@ -659,18 +672,6 @@ class EditingSession:
         self._publish(status={**self.status, **fields})
 
     # --- the image -----------------------------------------------------------------------
-    def _open(self, path: Path, preview_width: int) -> NDArray:
-        """Read the panorama at ``path``: a JPEG wider than :data:`LAZY_WIDTH` reduced to what the editor shows (sets ``_reduced``)."""
-        from ..detect import DETECT_WIDTH
-
-        header = image_header(path)
-        if header is not None and max(header.width, header.height) > LAZY_WIDTH:
-            needed = max(DISPLAY_WIDTH, 2 * preview_width, DETECT_WIDTH)
-            self._reduced = asked_reduction(header, needed)
-            if self._reduced > 1:
-                return read_image(path, width=needed)
-        return read_image(path)
-
     @property
     def image(self) -> NDArray:
         """The input panorama at full size (read-only); a panorama opened reduced is read whole at the first ask."""
