@@ -15,7 +15,6 @@ one strip; the strips go to a writer as they are made
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -25,7 +24,7 @@ from numpy.typing import NDArray
 from ..document.handles import Handles
 from ..sphere import coords
 from .pipeline import Result, warp
-from .warping import PAD, Order, check_warp_arguments, coordinates_lonlat, pad_panorama, remap_panorama
+from .warping import Order, check_warp_arguments, coordinates_lonlat, pad_panorama, remap_panorama, source_pixels
 
 __all__ = ["MAP_WIDTH", "STREAM_WIDTH", "STRIP_ROWS", "Strips", "warp_in_strips"]
 
@@ -73,7 +72,7 @@ class Strips:
             return _interpolated(self._vectors, self.result.coordinates.shape[1], src_width, width, band)  # type: ignore[union-attr]
         lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))  # one map: evaluated exactly
         src_lon, src_lat = self.result.inverse(lon, lat[band], band)
-        return _pixels(np.asarray(src_lon), np.asarray(src_lat), src_width)
+        return source_pixels(np.asarray(src_lon), np.asarray(src_lat), src_width)
 
     def image_strips(self) -> Iterator[NDArray]:
         """The output's strips top to bottom, each ``(rows, width[, C])``, made as they are taken."""
@@ -110,16 +109,7 @@ def _interpolated(vectors: NDArray[np.float32], w: int, src_width: int, width: i
     across = vectors[v0] + (vectors[v0 + 1] - vectors[v0]) * fv  # the grid's rows blended first: (rows, w + 2, 3)
     left = np.take(across, u0, axis=1)
     p = left + (np.take(across, u0 + 1, axis=1) - left) * fu
-    return _pixels(np.arctan2(p[..., 1], p[..., 0]), np.arctan2(p[..., 2], np.hypot(p[..., 0], p[..., 1])), src_width)
-
-
-def _pixels(lon: NDArray[np.floating], lat: NDArray[np.floating], src_width: int) -> NDArray[np.float32]:
-    """Radians to ``(x, y) + PAD`` source pixel coordinates, as :func:`~omniwidget.raster.warping.remap_coordinates`."""
-    kx = src_width / (2 * math.pi)
-    out = np.empty((*lon.shape, 2), np.float32)
-    out[..., 0] = lon * kx + (src_width / 2 - 0.5 + PAD)
-    out[..., 1] = (src_width / 4 - 0.5 + PAD) - lat * kx
-    return out
+    return source_pixels(np.arctan2(p[..., 1], p[..., 0]), np.arctan2(p[..., 2], np.hypot(p[..., 0], p[..., 1])), src_width)
 
 
 def warp_in_strips(

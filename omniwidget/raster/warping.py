@@ -37,6 +37,7 @@ __all__ = [
     "remap",
     "remap_coordinates",
     "remap_panorama",
+    "source_pixels",
     "warp_by_inverse",
     "warp_moebius",
 ]
@@ -177,16 +178,27 @@ def remap_coordinates(fn: GridInverse, width: int, src_width: int, offset: float
     """Source pixel coordinates ``(x, y) + offset`` of every output pixel, float32 (H, W, 2)."""
     lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
     out = np.empty((width // 2, width, 2), dtype=np.float32)
-    kx = src_width / (2 * math.pi)
-    x0 = src_width / 2 - 0.5 + offset  # lon = 0 sits at x = W/2 - 0.5
-    y0 = src_width / 4 - 0.5 + offset  # lat = 0 sits at y = H/2 - 0.5
 
     def work(rows: slice) -> None:
-        src_lon, src_lat = fn(lon, lat[rows], rows)
-        out[rows, :, 0] = src_lon * kx + x0
-        out[rows, :, 1] = y0 - src_lat * kx
+        source_pixels(*fn(lon, lat[rows], rows), src_width, offset, out=out[rows])
 
     run_blocks(width // 2, work)
+    return out
+
+
+def source_pixels(
+    lon: NDArray[np.floating], lat: NDArray[np.floating], src_width: int, offset: float = PAD, out: NDArray[np.float32] | None = None
+) -> NDArray[np.float32]:
+    """Source directions (radians) as pixel coordinates ``(x, y) + offset``, float32 (..., 2): :func:`coordinates_lonlat` undone.
+
+    ``lon = 0`` sits at ``x = W/2 - 0.5`` and ``lat = 0`` at ``y = H/2 - 0.5`` (pixel centres). Written into
+    ``out`` when given.
+    """
+    kx = src_width / (2 * math.pi)
+    if out is None:
+        out = np.empty((*np.shape(lon), 2), np.float32)
+    out[..., 0] = lon * kx + (src_width / 2 - 0.5 + offset)
+    out[..., 1] = (src_width / 4 - 0.5 + offset) - lat * kx
     return out
 
 
