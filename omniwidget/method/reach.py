@@ -202,14 +202,19 @@ def with_reach(
         The rungs' controls inserted before the background (``k + r`` controls).
     weights : ndarray of float64, shape (n, k + r)
         Rows still summing to 1. At a vertex at distance ``d`` from the target, with ``W``
-        the handle's weight, ``o`` the other handles' (not the background's) and ``tau`` the
-        ladder position (:func:`profiles`), the handle's rungs share
-        ``P = max(W, min(1, n tau) (1 - o))`` between the two rungs at ``n tau (1 - o) / P``;
-        the background gets ``1 - o - P`` and the other handles keep theirs. For a point
-        moved twice :data:`SHIFT_FREE` times its reach or more, ``P = W`` and ``tau`` is at
-        most ``W / (1 - o)``: its shift keeps the weight the solve gave it (raised over so
-        short a fall for so long a move, it would fold the sphere), and its turn and zoom
-        reach no farther than that weight; between once and twice the two rules mix linearly.
+        the handle's weight, ``o`` the other handles' (not the background's), ``tau`` the
+        ladder position (:func:`profiles`) and ``s`` how fully the point reaches
+        (:func:`_stays`: 1 for a point moved up to :data:`SHIFT_FREE` times its reach, 0 for
+        one moved twice that or more, linear between), the handle's rungs share
+        ``P = max(W, f s (1 - o))`` between the two rungs either side of ``n tau``, where
+        ``f`` is 1 for a point that stays and, for one that moves, falls linearly in distance
+        from 1 at a third of the reach to 0 at the reach (its shift's fade); the background
+        gets ``1 - o - P`` and the other handles keep theirs. Rung 0 of a point that stays
+        is the identity and goes to the background. For ``s < 1``, ``tau`` is also at most
+        ``max(s, W / (1 - o))``: a point moved twice :data:`SHIFT_FREE` times its reach or
+        more keeps its shift's weight as the solve gave it (raised over so short a fall for
+        so long a move, it would fold the sphere), and its turn and zoom reach no farther
+        than that weight.
     """
     reaching = _reaching(handles)
     if not reaching:
