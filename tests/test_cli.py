@@ -139,7 +139,7 @@ def test_fit_is_refused_unless_pad_or_stretch_and_the_input_stays_as_it_was(file
 def test_several_handles_are_blended(files, capsys):
     doc = {
         "handles": [
-            POINT["handles"][0],
+            {"kind": "point", "position": [0, 0], "target": [-40, 5]},  # into the cage, which holds still (Fig. 15)
             {"kind": "line", "start": [60, 30], "end": [100, 35]},
             {"kind": "cage", "vertices": [[-60, -10], [-30, -10], [-45, 20]]},
         ]
@@ -147,10 +147,11 @@ def test_several_handles_are_blended(files, capsys):
     (files / "three.json").write_text(json.dumps(doc))
     assert main(["warp", str(files / "in.png"), "-H", str(files / "three.json"), "-o", str(files / "three.png")]) == 0
     assert read_image(files / "three.png").shape == (128, 256, 3)
-    err = capsys.readouterr().err.splitlines()  # these handles' blend folds: untangled, said in one line, not a Python warning
-    assert len(err) == 2 and err[0].startswith("omniwidget: warning: the blend folded over near handles[0] (point)"), err
-    assert "untangled" in err[0] and err[0].endswith("the warp is one-to-one"), err
-    assert re.search(r"; lines within [\d.e-]+ px, fold-over 0, 1 warning above \(handles\[0\], handles\[1\], handles\[2\]\)$", err[1]), err
+    err = capsys.readouterr().err.splitlines()  # the conflict and the blend's fold, untangled: one line each, not Python warnings
+    assert len(err) == 3 and err[0].startswith("omniwidget: warning: handles[0] (point) moves what handles[2] (cage) holds still"), err
+    assert err[1].startswith("omniwidget: warning: the blend folded over near handles[0] (point) and handles[2] (cage)"), err
+    assert "untangled" in err[1] and err[1].endswith("the warp is one-to-one"), err
+    assert re.search(r"; lines within [\d.e-]+ px, fold-over 0, 2 warnings above \(handles\[0\], handles\[2\]\)$", err[2]), err
 
 
 def test_the_command_runs_as_a_program(files):

@@ -11,7 +11,10 @@ un-normalised sum). Here every step is done by hand, with nothing of ``omniwidge
 - ``M_j⁻¹(p)``: each control's 2 x 2 complex matrix ``[[a, b], [c, d]]`` (``Result.controls[j].moebius.matrix``,
   determinant 1) inverted as ``[[d, -b], [-c, a]]`` and applied to ``z = (x + i y) / (1 - z₃)``, the
   stereographic projection from the north pole, then projected back;
-- the sum ``Σ_j W_j M_j⁻¹(p)`` of unit vectors, normalised.
+- the sum ``Σ_j W_j M_j⁻¹(p)`` of unit vectors, normalised;
+- in the default mode, the harmonic fill between the handles (:mod:`omniwidget.method.harmonic`) applied to it as
+  its definition says: with ``fill``, ``blend`` and ``held`` the nodes' values interpolated bilinearly on their
+  lon/lat grid, ``fill(p) + held(p) (T⁻¹(p) - blend(p))``, normalised; the nodes' own ``blend`` is eq. (2) by hand.
 
 It is compared with ``Result.inverse_points`` (the blend at arbitrary directions), ``Result.inverse_map``
 (every pixel, what the image and the quality figures use) and ``Result.forward_points`` (the blend inverted
@@ -67,7 +70,30 @@ def _by_hand(result, lonlat: np.ndarray) -> np.ndarray:
         source[~np.isfinite(r2)] = (0.0, 0.0, 1.0)  # sent to the north pole
         total += weights[:, j : j + 1] * source
     total /= np.linalg.norm(total, axis=-1, keepdims=True)
+    if result.fill is not None:
+        total = _filled_by_hand(result.fill, lonlat, total)
     return np.stack([np.degrees(np.arctan2(total[:, 1], total[:, 0])), np.degrees(np.arcsin(np.clip(total[:, 2], -1, 1)))], axis=-1)
+
+
+def _filled_by_hand(fill, lonlat: np.ndarray, blend: np.ndarray) -> np.ndarray:
+    """The fill's map at ``lonlat`` (n, 2) from the blend there (n, 3): bilinear on its node grid, nodes at pixel centres."""
+    rows, width = fill.held.shape
+    step = 360.0 / width
+    x = (lonlat[:, 0] + 180.0) / step - 0.5
+    y = np.clip((90.0 - lonlat[:, 1]) / step - 0.5, 0, rows - 1)
+    i0, j0 = np.floor(x).astype(int), np.minimum(np.floor(y), rows - 2).astype(int)
+    fx, fy = x - i0, y - j0
+    out = np.zeros_like(blend)
+    share = np.zeros(len(blend))
+    for dj, di, w in ((0, 0, (1 - fy) * (1 - fx)), (0, 1, (1 - fy) * fx), (1, 0, fy * (1 - fx)), (1, 1, fy * fx)):
+        j, i = j0 + dj, (i0 + di) % width
+        out += w[:, None] * (fill.filled[j, i] - fill.blend[j, i])
+        share += w * fill.held[j, i]
+    out += share[:, None] * blend
+    for dj, di, w in ((0, 0, (1 - fy) * (1 - fx)), (0, 1, (1 - fy) * fx), (1, 0, fy * (1 - fx)), (1, 1, fy * fx)):
+        out += (w * (1 - share))[:, None] * fill.blend[j0 + dj, (i0 + di) % width]
+    out /= np.linalg.norm(out, axis=-1, keepdims=True)
+    return np.where(share[:, None] == 1.0, blend, out)
 
 
 def _apart(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -84,8 +110,8 @@ def _apart(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 @pytest.fixture(scope="module", params=[True, False], ids=["default", "paper"])
 def scene(request):
     """A room with lines, a moved cage and point handles (``mixed`` seed 1), warped at 512 in the default mode
-    (the still background, which folds nothing here: no window is untangled, the map is eq. (2) everywhere) and
-    in the paper's (``anchor: null``)."""
+    (the still background, which folds nothing here: no window is untangled, the map is eq. (2) with its fill
+    everywhere) and in the paper's (``anchor: null``)."""
     room, doc, _ = family_scene("mixed", 1, W)
     if not request.param:
         doc = Handles(doc.handles, Options(rectify=doc.options.rectify, anchor=None))
@@ -95,6 +121,9 @@ def scene(request):
     assert result.weights is not None and len(result.controls) > 3
     if request.param:
         assert result.folds.area == 0 and not any("untangled" in m for m in result.warnings), result.warnings
+        assert result.fill is not None and not result.fill.held.all()  # the fill is there to be checked
+    else:
+        assert result.fill is None
     return request.param, result
 
 

@@ -113,14 +113,16 @@ def test_one_map_for_everything_weighs_every_control_the_same(image):
 
 def test_the_packed_texture_keeps_every_channel(image):
     result = warp(image, _scene(5.0), width=WIDTH)
-    basis = live_basis(result, 2)  # a cage of three vertices: 3 + 3 channels, two layers
+    basis = live_basis(result, 2)  # a cage of three vertices: 3 + 3 + 1 + 3 channels, three layers
     packed = basis.packed()
     height, width = basis.fixed.shape[:2]
-    assert packed.dtype == np.float16 and packed.shape == (2 * height, width, 4)
-    channels = np.concatenate([packed[:height], packed[height:]], axis=-1).astype(np.float32)
+    assert packed.dtype == np.float16 and packed.shape == (3 * height, width, 4)
+    channels = np.concatenate([packed[:height], packed[height : 2 * height], packed[2 * height :]], axis=-1).astype(np.float32)
     np.testing.assert_allclose(channels[..., :3], basis.fixed, atol=2e-3)
     np.testing.assert_allclose(channels[..., 3:6], basis.weights, atol=1e-3)
-    assert not channels[..., 6:].any()
+    np.testing.assert_allclose(channels[..., 6], basis.share, atol=1e-3)
+    np.testing.assert_allclose(channels[..., 7:10], basis.offset, atol=1e-3)
+    assert not channels[..., 10:].any()
 
 
 def test_a_handle_without_a_control_is_refused(image):
@@ -142,7 +144,7 @@ def test_the_session_sends_the_basis_and_solves_a_drag_without_an_edit():
     ((header, (buffer,)),) = sent
     assert header["op"] == "live" and header["index"] == 2 and header["controls"] == 3 and header["carry"] is True
     assert header["generation"] == session.status["generation"] and header["size"] == WIDTH
-    assert len(buffer) == 2 * header["height"] * header["width"] * 4 * 2  # two layers of RGBA half floats
+    assert len(buffer) == 3 * header["height"] * header["width"] * 4 * 2  # three layers of RGBA half floats: F, 3 weights, the fill's s and o
     session.live_basis_message(9)  # a handle that is not there: nothing
     assert len(sent) == 1
 

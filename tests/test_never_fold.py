@@ -83,10 +83,12 @@ def test_the_default_mode_never_folds_at_1024(family, seed):
 
 
 def test_a_scene_that_folds_is_untangled_and_says_which_handles_gave_way():
-    scene, doc, _ = family_scene("long", 3, 1024)  # the paper's mode folds 3.3% of the sphere here
+    # the one odd seed of 1-19 whose default blend still folds with the harmonic fill (long 3, which folded 3.3% of the
+    # sphere in the paper's mode, no longer does in the default's); the paper's mode folds 0.024% of the sphere here
+    scene, doc, _ = family_scene("long", 5, 1024)
     paper = _warp(scene.image, Handles(doc.handles, Options(anchor=None)))
     default = _warp(scene.image, doc)
-    assert paper.folds.area > 0.01  # the paper's mode is as it was: it folds here, and says so
+    assert paper.folds.area > 1e-4  # the paper's mode is as it was: it folds here, and says so
     assert any("folds over near" in w for w in paper.warnings) and not any("untangled" in w for w in paper.warnings)
     (given,) = [w for w in default.warnings if w.startswith("the blend folded over near")]
     assert re.search(r"handles\[\d+\] \(line\)", given) and "the warp is one-to-one" in given

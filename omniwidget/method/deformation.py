@@ -24,12 +24,14 @@ from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
 from ..sphere import coords
 from ..sphere.arcs import crossing_pairs, inside_polygon
 from ..sphere.moebius import Moebius
+from . import harmonic
 from .background import BACKGROUND_EASE, cage_insides, carry_insides, ease_background, with_background
 from .constraints import SAMPLES, Constraints, Control, build_constraints
+from .harmonic import HarmonicFill, harmonic_fill
 from .limits import check_mesh, check_weights
 from .locate import interpolate, locate_points
 from .mesh import adaptive_mesh
-from .reach import reach_samples, solved, with_reach
+from .reach import reach_discs, reach_samples, solved, with_reach
 
 __all__ = ["Deformation", "blended_points", "deform"]
 
@@ -67,6 +69,10 @@ class Deformation:
         per control of :func:`~omniwidget.method.reach.solved` (no rungs): what
         :func:`omniwidget.method.bbw.bbw` solved for, kept so that the next solve of a
         similar document can start from them (``deform(..., previous=...)``).
+    fill : HarmonicFill or None
+        With the still background: the map between the handles, filled in as the most
+        conformal map that agrees with the blend around them (:mod:`.harmonic`); None in
+        the paper's mode or where the handles and the background hold every node.
     warnings : tuple of str
         Conflicts found on the way.
     timings : dict of str to float
@@ -81,6 +87,7 @@ class Deformation:
     prescribed: NDArray[np.float64] | None = None
     weights: NDArray[np.float64] | None = None
     raw_weights: NDArray[np.float64] | None = field(default=None, repr=False)
+    fill: HarmonicFill | None = field(default=None, repr=False)
     warnings: tuple[str, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
 
@@ -98,7 +105,7 @@ class Deformation:
         return maps[0] if all(m.isclose(maps[0]) for m in maps[1:]) else None
 
     def inverse_points(self, lonlat: ArrayLike) -> NDArray[np.float64]:
-        """The blended inverse map (eq. 2) at arbitrary output positions.
+        """The blended inverse map (eq. 2, with its :attr:`fill`) at arbitrary output positions.
 
         Parameters
         ----------
@@ -114,7 +121,19 @@ class Deformation:
         if self.weights is None or self.vertices is None or self.faces is None:
             single = self.moebius if self.moebius is not None else Moebius.identity()
             return coords.xyz_to_lonlat(single.inverse.apply_xyz(xyz))
-        return blended_points([c.moebius.inverse for c in self.controls], self.vertices, self.faces, self.weights, xyz)
+        shown = blended_points([c.moebius.inverse for c in self.controls], self.vertices, self.faces, self.weights, xyz)
+        if self.fill is None:
+            return shown
+        return coords.xyz_to_lonlat(self.fill.apply(coords.xyz_to_lonlat(xyz), coords.lonlat_to_xyz(shown)))
+
+    def filled(self) -> Deformation:
+        """The deformation with its :attr:`fill` made for its controls' maps as they are now (after they were changed)."""
+        if self.handles.options.anchor is None or self.vertices is None or self.faces is None or self.weights is None:
+            return self
+        if not harmonic.FILL:
+            return replace(self, fill=None)
+        fill = harmonic_fill(self.constraints, self.vertices, self.faces, self.weights, reach_discs(self.handles))
+        return replace(self, fill=fill)
 
     def forward_points(self, lonlat: ArrayLike, control: int, iterations: int = 8) -> NDArray[np.float64]:
         """Where input positions land in the output, by inverting the blend near a control.
@@ -224,7 +243,7 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
         weights = ease_background(carry_insides(weights, insides), BACKGROUND_EASE)
         constraints, weights = with_reach(handles, constraints, mesh.vertices, weights)
     lap("weights")
-    return Deformation(
+    d = Deformation(
         handles=handles,
         constraints=constraints,
         vertices=mesh.vertices,
@@ -236,6 +255,16 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
         warnings=tuple(problems + clashes),
         timings=timings,
     )
+    if handles.options.anchor is not None:
+        same = harmonic.FILL and previous is not None and raw is previous.raw_weights and _same_maps(previous.controls, constraints.controls)
+        d = replace(d, fill=getattr(previous, "fill", None)) if same else d.filled()
+        lap("fill")
+    return d
+
+
+def _same_maps(before: Sequence[Control], now: Sequence[Control]) -> bool:
+    """Whether two lists of controls have the same maps, in order."""
+    return len(before) == len(now) and all(a.moebius.isclose(b.moebius) for a, b in zip(before, now, strict=True))
 
 
 def blended_points(

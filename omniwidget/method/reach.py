@@ -27,7 +27,7 @@ from ..sphere import coords
 from ..sphere.moebius import Moebius
 from .constraints import Constraints, Control
 
-__all__ = ["DEFAULT_REACH", "default_reach", "profiles", "reach_samples", "rung_count", "rung_maps", "solved", "with_reach"]
+__all__ = ["DEFAULT_REACH", "default_reach", "profiles", "reach_discs", "reach_samples", "rung_count", "rung_maps", "solved", "with_reach"]
 
 #: The default reach (degrees) of a point handle with room around it; nearer other handles make it shorter.
 DEFAULT_REACH = 15.0
@@ -155,6 +155,15 @@ def _reaching(handles: Handles) -> list[tuple[int, PointHandle, float]]:
         if isinstance(h, PointHandle) and (h.scale != 1.0 or h.rotation != 0.0):
             out.append((i, h, h.reach if h.reach is not None else default_reach(handles, i)))
     return out
+
+
+def reach_discs(handles: Handles) -> list[tuple[NDArray[np.float64], float]]:
+    """Each turning or zooming point's reach as an output disc: its target (unit vector) and the reach, degrees.
+
+    Every point with a turn or a zoom is listed, its ladder or not (a point moved far keeps its
+    turn and zoom within its shift's weights, which are its own there too).
+    """
+    return [(coords.lonlat_to_xyz(h.final), reach) for _, h, reach in _reaching(handles)]
 
 
 def reach_samples(handles: Handles) -> NDArray[np.float64]:

@@ -3,7 +3,11 @@
 While a handle is dragged, only its own controls' maps change; the weights stay those of
 the last solve. At each output direction ``p`` eq. (2) is then
 
-``T⁻¹(p) = normalize(F(p) + Σ_{j moving} W_j(p) M_j⁻¹(p))``, with ``F(p) = Σ_{j fixed} W_j(p) M_j⁻¹(p)``.
+``T⁻¹(p) = normalize(F(p) + Σ_{j moving} W_j(p) M_j⁻¹(p))``, with ``F(p) = Σ_{j fixed} W_j(p) M_j⁻¹(p)``,
+
+and in the default mode the harmonic fill between the handles (:mod:`omniwidget.method.harmonic`) then
+takes that to ``normalize(s(p) T⁻¹(p) + o(p))``, its affine form (:meth:`~omniwidget.method.harmonic.HarmonicFill.affine`),
+as it was for the maps when the drag started (the kernel's result after the release fills for the new maps).
 
 :func:`live_basis` computes ``F`` and the moving controls' ``W_j`` once, when a drag starts;
 the browser (``omniwidget/widget/static/editor.js``) rebuilds the moving ``M_j`` from the
@@ -57,6 +61,9 @@ class LiveBasis:
         columns run on from there and wrap across the ±180° seam.
     size : int
         The whole grid's width (its height is half of it).
+    share, offset : ndarray of float32, shapes (h, w) and (h, w, 3)
+        The fill's affine form at each pixel centre of the region: the map shown is
+        ``normalize(share T⁻¹ + offset)``; 1 and 0 without a fill.
     """
 
     fixed: NDArray[np.float32]
@@ -64,6 +71,8 @@ class LiveBasis:
     controls: tuple[int, ...]
     origin: tuple[int, int]
     size: int
+    share: NDArray[np.float32]
+    offset: NDArray[np.float32]
 
     def lonlat(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Longitudes (w,) and latitudes (h,) of the region's pixel centres, radians."""
@@ -88,17 +97,18 @@ class LiveBasis:
         lon, lat = self.lonlat()
         for j, m in enumerate(maps):
             total += self.weights[..., j, None] * _unit_images(m.inverse, lon, lat)
-        return coords.xyz_to_lonlat(total)
+        total /= np.linalg.norm(total, axis=-1, keepdims=True)
+        return coords.xyz_to_lonlat(self.share[..., None] * total + self.offset)
 
     def packed(self) -> NDArray[np.float16]:
-        """The basis as the browser's texture: ``(L h, w, 4)`` half floats, channels ``F_x, F_y, F_z, W_0, W_1, ...``.
+        """The basis as the browser's texture: ``(L h, w, 4)`` half floats, channels ``F_x, F_y, F_z, W_0, W_1, ..., s, o_x, o_y, o_z``.
 
         Layer ``l`` (rows ``l h`` to ``(l + 1) h``) holds channels ``4 l`` to ``4 l + 3``;
         the last layer is padded with zeros. Half floats keep a direction to 5e-4 rad,
         well under a pixel of the 1024-wide preview (6e-3 rad).
         """
         height, width = self.fixed.shape[:2]
-        channels = np.concatenate([self.fixed, self.weights], axis=-1)
+        channels = np.concatenate([self.fixed, self.weights, self.share[..., None], self.offset], axis=-1)
         layers = -(-channels.shape[-1] // 4)
         out = np.zeros((layers, height, width, 4), np.float16)
         for layer in range(layers):
@@ -179,10 +189,17 @@ def live_basis(result: Result, handle: int, region_weight: float | None = REGION
         rows, cols = slice(0, width // 2), np.arange(width)
     else:
         rows, cols = _region(weights.max(axis=-1) > region_weight)
+    fill_share: NDArray[np.float64] = np.ones((rows.stop - rows.start, len(cols)))
+    offset: NDArray[np.float64] = np.zeros(fill_share.shape + (3,))
+    if result.fill is not None:
+        lon_deg, lat_deg = coords.grid_lonlat(width)
+        fill_share, offset, _ = result.fill.affine(np.stack(np.meshgrid(lon_deg[cols], lat_deg[rows]), axis=-1))
     return LiveBasis(
         np.ascontiguousarray(fixed[rows][:, cols], np.float32),
         np.ascontiguousarray(weights[rows][:, cols], np.float32),
         moving,
         (rows.start, int(cols[0]) if cols.size else 0),
         width,
+        np.ascontiguousarray(fill_share, np.float32),
+        np.ascontiguousarray(offset, np.float32),
     )

@@ -30,6 +30,7 @@ from ..sphere import coords
 from ..sphere.moebius import Moebius
 from . import _kernels
 from .blend import blended_inverse, mesh_blended_inverse, mesh_pixel_weights
+from .filling import fill_coordinates, filled_inverse
 from .fold import FoldOver, fold_of_coordinates
 from .sampled import coarse_step, sampled_coordinates
 from .untangle import Patch, apply_patches, line_mask, line_pixels, patched_inverse, untangle
@@ -251,6 +252,9 @@ def blend_coordinates(
         else:
             coordinates, face, planes = _kernels.walk_blend(d.vertices, d.faces, d.weights, inverses, width, src_width)
         laps("blend")
+        if d.fill is not None:
+            fill_coordinates(coordinates, d.fill, src_width)
+            laps("fill")
         folds = fold_of_coordinates(coordinates, src_width)
         at_folds: NDArray[np.floating] | None = None
         if folds.area > 0:
@@ -261,6 +265,9 @@ def blend_coordinates(
         laps("locate")
         coordinates = remap_coordinates(blended_inverse(inverses, mesh_pixel_weights(d.faces, d.weights, face, bary)), width, src_width)
         laps("blend")
+        if d.fill is not None:
+            fill_coordinates(coordinates, d.fill, src_width)
+            laps("fill")
         folds = fold_of_coordinates(coordinates, src_width)
         at_folds = interpolate(d.weights, d.faces, face[folds.mask], bary[folds.mask]) if folds.area > 0 else None
     laps("fold check")
@@ -359,7 +366,7 @@ def _give_way(
 
     def attempt(t: float) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch]]:
         controls = tuple(replace(c, moebius=c.moebius.power(t)) if j in involved else c for j, c in enumerate(d.controls))
-        relaxed = replace(d, constraints=replace(d.constraints, controls=controls))
+        relaxed = replace(d, constraints=replace(d.constraints, controls=controls)).filled()
         coordinates, turned, _ = blend_coordinates(relaxed, width, src_width, exact=exact)
         return (relaxed, *_untangled(coordinates, turned, src_width, _kept(relaxed, width)[1]))
 
@@ -481,7 +488,7 @@ def warp(
             coordinates, folds = untangled, left
             problems += _lines_given_way(handles, lines, patches)
             laps("untangle")
-        inverse = patched_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], *mesh, width), patches)
+        inverse = patched_inverse(filled_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], *mesh, width), d.fill), patches)
         out = remap_panorama(image, coordinates, order)
         laps("resampling")
         if at_folds is not None and (patches or folds.area >= FOLD_WARNING_AREA):

@@ -3,14 +3,17 @@
 // The kernel sends, once per drag, the basis of omniwidget/raster/live.py for the dragged
 // handle: per preview pixel of the region the handle weighs in, the other controls' part
 // of eq. (2)'s sum F(p) and the handle's own weights W_j(p), as half floats in layers of
-// four channels (F_x, F_y, F_z, W_0 | W_1 ... W_4 | ...). Outside the region the kernel's
+// four channels (F_x, F_y, F_z, W_0 | W_1 ... W_4 | ...), then the harmonic fill's affine form at the
+// pixel, s(p) and o(p) (1 and 0 where nothing is filled). Outside the region the kernel's
 // result is already right; the canvas holds the region only. Every frame the handle's maps are rebuilt from its control
 // points (moebius.js) and the fragment shader sums
-//     normalize(F(p) + Σ_j W_j(p) M_j⁻¹(p))
+//     T(p) = normalize(F(p) + Σ_j W_j(p) M_j⁻¹(p)),   then   s(p) T(p) + o(p)
 // and samples the panorama there, bilinearly, wrapping across the ±180° seam.
 
 // Controls a basis may hold: two vec4 uniforms each.
 export const MAX_CONTROLS = 32;
+// Channels of a basis besides the controls' weights: F (3), then the fill's s (1) and o (3).
+export const BASIS_CHANNELS = 7;
 // Pixels a frame computes while the mouse moves (an eighth of the 1024 x 512 preview): a larger
 // region is drawn from every second (or fourth) pixel until the mouse rests, then in full.
 export const MOVING_PIXELS = 256 * 256;
@@ -56,8 +59,14 @@ void main() {
     float share = w / (uu + vv);
     sum += vec3(2.0 * share * (big_u.x * big_v.x + big_u.y * big_v.y), 2.0 * share * (big_u.y * big_v.x - big_u.x * big_v.y), share * (uu - vv));
   }
-  float source_lon = atan(sum.y, sum.x);
-  float source_lat = atan(sum.z, length(sum.xy));
+  float fill[4];
+  for (int k = 0; k < 4; k++) {
+    int channel = 3 + count + k;
+    fill[k] = texelFetch(basis, ivec2(col, row + (channel / 4) * height), 0)[channel % 4];
+  }
+  vec3 shown = fill[0] * normalize(sum) + vec3(fill[1], fill[2], fill[3]);
+  float source_lon = atan(shown.y, shown.x);
+  float source_lat = atan(shown.z, length(shown.xy));
   color = vec4(texture(source, vec2((source_lon + PI) / (2.0 * PI), (0.5 * PI - source_lat) / PI)).rgb, 1.0);
 }`;
 
@@ -117,7 +126,7 @@ export function createLive(canvas) {
     // A basis from the kernel: its header and its half floats, (layers * height) x width x 4.
     setBasis(header, buffer) {
       const { width, height, controls } = header;
-      const layers = Math.ceil((3 + controls) / 4);
+      const layers = Math.ceil((BASIS_CHANNELS + controls) / 4);
       if (!width || !height || controls > MAX_CONTROLS || layers * height > gl.getParameter(gl.MAX_TEXTURE_SIZE)) return false;
       const data = new Uint16Array(buffer.buffer, buffer.byteOffset, buffer.byteLength / 2);
       if (data.length !== layers * height * width * 4) return false;
