@@ -310,3 +310,43 @@ def split_rows(r0, r1, face, planes, corners, weights, mats, slot, cos_lon, sin_
             fixed[r, c, 1] = sum_i
             fixed[r, c, 2] = sum_z
 
+
+
+@njit(nogil=True, cache=True)
+def fill_rows(r0, r1, coordinates, held, filled, blend, i0, fx, j0, fy, src_width, offset):  # pragma: no cover
+    """The harmonic fill (:meth:`omniwidget.method.harmonic.HarmonicFill.apply`) on rows r0..r1 of source pixel coordinates, in place."""
+    nodes = held.shape[1]
+    kx = 2.0 * math.pi / src_width
+    x0 = 0.5 * src_width - 0.5 + offset
+    y0 = 0.25 * src_width - 0.5 + offset
+    for r in range(r0, r1):
+        ja = j0[r]
+        jb = ja + 1
+        b_row = fy[r]
+        a_row = 1.0 - b_row
+        for c in range(coordinates.shape[1]):
+            ia = i0[c]
+            ib = ia + 1 if ia + 1 < nodes else 0
+            if held[ja, ia] and held[ja, ib] and held[jb, ia] and held[jb, ib]:
+                continue  # every node round it held: the blend as it is
+            b_col = fx[c]
+            a_col = 1.0 - b_col
+            w00, w01, w10, w11 = a_row * a_col, a_row * b_col, b_row * a_col, b_row * b_col
+            share = w00 * held[ja, ia] + w01 * held[ja, ib] + w10 * held[jb, ia] + w11 * held[jb, ib]
+            lon = (coordinates[r, c, 0] - x0) * kx
+            lat = (y0 - coordinates[r, c, 1]) * kx
+            cos_lat = math.cos(lat)
+            p0 = share * cos_lat * math.cos(lon)
+            p1 = share * cos_lat * math.sin(lon)
+            p2 = share * math.sin(lat)
+            for k in range(3):
+                f = w00 * filled[ja, ia, k] + w01 * filled[ja, ib, k] + w10 * filled[jb, ia, k] + w11 * filled[jb, ib, k]
+                g = w00 * blend[ja, ia, k] + w01 * blend[ja, ib, k] + w10 * blend[jb, ia, k] + w11 * blend[jb, ib, k]
+                if k == 0:
+                    p0 += f - share * g
+                elif k == 1:
+                    p1 += f - share * g
+                else:
+                    p2 += f - share * g
+            coordinates[r, c, 0] = math.atan2(p1, p0) / kx + x0
+            coordinates[r, c, 1] = y0 - math.atan2(p2, math.sqrt(p0 * p0 + p1 * p1)) / kx

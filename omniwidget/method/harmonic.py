@@ -106,8 +106,8 @@ class HarmonicFill:
             Elsewhere :meth:`apply` gives the blend back exactly.
         """
         free_cell = self._free_cells()
-        i0, _ = self._columns(np.asarray(lon, dtype=np.float64))
-        j0, _ = self._rows(np.asarray(lat, dtype=np.float64))
+        i0, _ = self.column_nodes(np.asarray(lon, dtype=np.float64))
+        j0, _ = self.row_nodes(np.asarray(lat, dtype=np.float64))
         return np.asarray(free_cell[j0[:, None], i0[None, :]])
 
     def apply(self, lonlat: ArrayLike, blend: ArrayLike) -> NDArray[np.float64]:
@@ -150,7 +150,7 @@ class HarmonicFill:
             Whether all four nodes round a direction are held (there the map is the blend itself).
         """
         p = np.asarray(lonlat, dtype=np.float64)
-        (i0, fx), (j0, fy) = self._columns(p[..., 0]), self._rows(p[..., 1])
+        (i0, fx), (j0, fy) = self.column_nodes(p[..., 0]), self.row_nodes(p[..., 1])
         i1, j1 = (i0 + 1) % self.width, j0 + 1
         corners = ((j0, i0, (1 - fy) * (1 - fx)), (j0, i1, (1 - fy) * fx), (j1, i0, fy * (1 - fx)), (j1, i1, fy * fx))
         shape = p.shape[:-1]
@@ -162,12 +162,52 @@ class HarmonicFill:
             every &= self.held[j, i]
         return share, filled - share[..., None] * blend_nodes, every
 
-    def _columns(self, lon: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    def grid_affine(
+        self, lon: ArrayLike, lat: ArrayLike, rows: ArrayLike, cols: ArrayLike
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+        """:meth:`affine`'s ``share`` and ``offset`` at pixels of a lon/lat grid, in single precision.
+
+        Bilinear in the node grid is linear along its rows and then along its columns: the
+        grid's rows are interpolated on the nodes' columns first, then along the grid's
+        columns (one sparse product), and only the pixels asked for are kept.
+
+        Parameters
+        ----------
+        lon : array_like, shape (w,)
+            Longitudes of the grid's columns, degrees.
+        lat : array_like, shape (h,)
+            Latitudes of its rows, degrees.
+        rows, cols : array_like of int, shape (n,)
+            The pixels: row and column indices into the grid.
+
+        Returns
+        -------
+        share : ndarray of float32, shape (n,)
+        offset : ndarray of float32, shape (n, 3)
+            As :meth:`affine` gives them, to single precision.
+        """
+        from scipy import sparse
+
+        nodes = np.concatenate([self.held[..., None].astype(np.float64), self.filled, self.blend], axis=-1)
+        (i0, fx), (j0, fy) = self.column_nodes(np.asarray(lon, dtype=np.float64)), self.row_nodes(np.asarray(lat, dtype=np.float64))
+        along_rows = ((1 - fy)[:, None, None] * nodes[j0] + fy[:, None, None] * nodes[j0 + 1]).astype(np.float32)  # (h, nodes, 7)
+        h, w = len(j0), len(i0)
+        along = sparse.csr_matrix(  # (w, nodes): each column's two nodes and their weights
+            (np.concatenate([1 - fx, fx]).astype(np.float32), (np.tile(np.arange(w), 2), np.concatenate([i0, (i0 + 1) % self.width]))),
+            shape=(w, self.width),
+        )
+        at = (along @ along_rows.transpose(1, 0, 2).reshape(self.width, h * 7)).reshape(w, h, 7)[np.asarray(cols), np.asarray(rows)]
+        share = at[:, 0]
+        return share, at[:, 1:4] - share[:, None] * at[:, 4:7]
+
+    def column_nodes(self, lon: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """For longitudes (degrees, any shape): the node column west of each and its share of the next one east (wrapping)."""
         x = (lon + 180.0) * (self.width / 360.0) - 0.5
         i0 = np.floor(x)
         return (i0.astype(np.int64) % self.width), x - i0
 
-    def _rows(self, lat: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    def row_nodes(self, lat: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """For latitudes (degrees, any shape): the node row north of each and its share of the next one south (clamped at the poles)."""
         rows = self.held.shape[0]
         y = np.clip((90.0 - lat) * (self.width / 360.0) - 0.5, 0.0, rows - 1)
         j0 = np.minimum(np.floor(y), rows - 2)

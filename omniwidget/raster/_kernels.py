@@ -44,6 +44,7 @@ __all__ = [
     "available",
     "blend_blocks",
     "blend_coordinates",
+    "fill_coordinates",
     "fold_mask",
     "interpolate_shift",
     "split_sum",
@@ -387,3 +388,32 @@ def strongest_weights(
         out,
     )
     return out
+
+
+def fill_coordinates(
+    coordinates: NDArray[np.float32],
+    held: NDArray[np.bool_],
+    filled: NDArray[np.float64],
+    blend: NDArray[np.float64],
+    columns: tuple[NDArray[np.int64], NDArray[np.float64]],
+    rows: tuple[NDArray[np.int64], NDArray[np.float64]],
+    src_width: int,
+) -> None:
+    """The harmonic fill applied in place to source pixel coordinates (H, W, 2), in blocks of rows on threads.
+
+    ``held``, ``filled`` and ``blend`` are the fill's nodes (:class:`omniwidget.method.harmonic.HarmonicFill`);
+    ``columns`` and ``rows`` each pixel column's and row's first node and its share of the next.
+    """
+    kernel = _compiled().fill_rows
+    args = (
+        _plain(held.astype(np.float64)),
+        _plain(filled),
+        _plain(blend),
+        _plain(columns[0].astype(np.int64)),
+        _plain(columns[1]),
+        _plain(rows[0].astype(np.int64)),
+        _plain(rows[1]),
+        float(src_width),
+        float(PAD),
+    )
+    run_blocks(len(coordinates), lambda block: kernel(block.start, block.stop, coordinates, *args))

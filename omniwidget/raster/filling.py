@@ -14,22 +14,44 @@ from numpy.typing import NDArray
 
 from ..method.harmonic import HarmonicFill
 from ..sphere import coords
-from .warping import GridInverse, coordinates_lonlat, source_pixels
+from . import _kernels
+from .warping import PAD, GridInverse, source_pixels
 
-__all__ = ["fill_coordinates", "filled_inverse"]
+__all__ = ["ROWS", "fill_coordinates", "filled_inverse"]
+
+
+#: Output rows filled at a time (bounds the per-pixel fields' memory on wide outputs).
+ROWS = 128
 
 
 def fill_coordinates(coordinates: NDArray[np.float32], fill: HarmonicFill, src_width: int) -> NDArray[np.float32]:
     """Source pixel coordinates of the blend, (H, W, 2) float32 (padded as a warp resamples by), with the fill applied in place.
 
-    Returns the same array.
+    With the compiled kernels, pixel by pixel (:func:`omniwidget.raster._kernels.fill_coordinates`);
+    in numpy, in single precision, a block of rows at a time: the fill's affine form
+    (:meth:`~omniwidget.method.harmonic.HarmonicFill.grid_affine`) at the pixels with a free
+    node round them, applied there. Returns the same array.
     """
     lon, lat = coords.grid_lonlat(coordinates.shape[1])
-    rows, cols = np.nonzero(fill.touched(lon, lat))
-    if len(rows):
-        blend = coords.lonlat_to_xyz(coordinates_lonlat(coordinates[rows, cols], src_width))
-        shown = coords.xyz_to_lonlat(fill.apply(np.stack([lon[cols], lat[rows]], axis=-1), blend))
-        coordinates[rows, cols] = source_pixels(np.radians(shown[:, 0]), np.radians(shown[:, 1]), src_width)
+    if _kernels.available():
+        _kernels.fill_coordinates(coordinates, fill.held, fill.filled, fill.blend, fill.column_nodes(lon), fill.row_nodes(lat), src_width)
+        return coordinates
+    touched = fill.touched(lon, lat)
+    kx = np.float32(2 * np.pi / src_width)
+    for top in range(0, len(lat), ROWS):
+        block = slice(top, min(top + ROWS, len(lat)))
+        rows, cols = np.nonzero(touched[block])
+        if not len(rows):
+            continue
+        share, offset = fill.grid_affine(lon, lat[block], rows, cols)
+        xy = coordinates[block][rows, cols]
+        src_lon = (xy[:, 0] - np.float32(src_width / 2 - 0.5 + PAD)) * kx
+        src_lat = (np.float32(src_width / 4 - 0.5 + PAD) - xy[:, 1]) * kx
+        c = np.cos(src_lat)
+        shown = share[:, None] * np.stack([c * np.cos(src_lon), c * np.sin(src_lon), np.sin(src_lat)], axis=-1) + offset
+        coordinates[block][rows, cols] = source_pixels(
+            np.arctan2(shown[:, 1], shown[:, 0]), np.arctan2(shown[:, 2], np.hypot(shown[:, 0], shown[:, 1])), src_width
+        )
     return coordinates
 
 
