@@ -193,7 +193,7 @@ def test_notebook_04_prose_quotes_the_figures_it_prints(executed):
     paper, still = _still_background_lines(nb)
     for quoted in ("folds 2.5%", "moved 14° on average", "distortion 8.4", "far from the handles moved 25°"):
         assert quoted in paper, paper
-    for quoted in ("folds 0%", "moved 0.066° on average", "distortion 0.025", "far from the handles still"):
+    for quoted in ("folds 0%", "moved 0.13° on average", "distortion 0.034", "far from the handles still"):
         assert quoted in still, still
     prose = next(c.source for c in nb.cells if c.cell_type == "markdown" and c.source.startswith("## Beyond the paper"))
-    assert all(figure in prose for figure in ("2.5%", "14°", "25°", "0.066°", "0.025"))
+    assert all(figure in prose for figure in ("2.5%", "14°", "25°", "0.13°", "0.034"))
