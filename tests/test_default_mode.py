@@ -248,8 +248,9 @@ def test_the_papers_mode_is_the_paper():
 def test_rooms_of_long_lines_are_far_calmer_than_the_papers(seed):
     """Part 4 on rooms of long lines, as far as it is met (``bench/bench_default.py``: the issue's figures are not
     reached on every scene). Seeds 1, 3 and 5 of the report half: the default folds at most as much as the paper,
-    distorts a third as much and moves the sphere a tenth as far. Seed 7 is the known exception: two long lines'
-    ends meet at a corner and the default folds 0.5% with distortion mean 3.5, against the paper's 0% and 1.1."""
+    distorts a third as much and moves the sphere a sixth as far (seed 5: 1.71° against 14.1°; a tenth before issue
+    30 held the lines' ends). Seed 7 was the exception before the harmonic fill (two long lines' ends meet at a corner
+    and the default folded 0.5% with distortion mean 3.5); it is not asserted here."""
     _check_calmer(seed, 1024)
 
 
@@ -265,7 +266,7 @@ def _check_calmer(seed: int, width: int) -> None:
     print(f"\nlong {seed} at {width}: default {ours.line()}\n  paper {theirs.line()}")
     assert ours.fold_over <= theirs.fold_over
     assert ours.distortion_mean < theirs.distortion_mean / 3 and ours.distortion_p99 < theirs.distortion_p99 / 2
-    assert ours.displacement < theirs.displacement / 10 and ours.straightness <= 0.5 * width / 1024
+    assert ours.displacement < theirs.displacement / 6 and ours.straightness <= 0.5 * width / 1024
 
 
 #: bench/RESULTS.md's "Never fold" table (the harmonic fill and the lines' ends held, issue 30), default mode: the

@@ -11,6 +11,7 @@ from omniwidget.evaluate.quality import cage_motion, straightness
 from omniwidget.evaluate.scenes import mark_lines, synthetic_room
 from omniwidget.method.locate import face_neighbours, locate_faces
 from omniwidget.raster import _kernels
+from omniwidget.raster.filling import fill_coordinates
 from omniwidget.raster.pipeline import warp
 from omniwidget.raster.sampled import coarse_step, sampled_coordinates
 from omniwidget.raster.warping import PAD, remap_coordinates
@@ -42,6 +43,8 @@ def _sampled_and_source_error(fast, exact) -> tuple[np.ndarray, np.ndarray]:
 
     inverses = [c.moebius.inverse for c in fast.controls]
     sampled, *_ = sampled_coordinates(inverses, fast.vertices, fast.faces, fast.weights, W, W, 4, fast.constraints.points)
+    if fast.fill is not None:  # the default mode: the blend sampled, then filled between the handles as the warp does
+        fill_coordinates(sampled, fast.fill, W)
     error = coords.angular_distance(lonlat(sampled.astype(np.float64)), lonlat(remap_coordinates(exact.inverse, W, W))) * W / 360
     return sampled, error
 
