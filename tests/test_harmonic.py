@@ -120,8 +120,11 @@ def test_the_papers_mode_has_no_fill():
     assert d.fill is None
 
 
-def test_a_bad_grid_width_is_refused():
+def test_a_bad_grid_width_or_node_arrays_are_refused():
     room, doc, _ = family_scene("long", 1, 128)
     d = deform(doc)
     with pytest.raises(ValueError, match="even number of nodes"):
-        harmonic.harmonic_fill(d.constraints, d.vertices, d.faces, d.weights, width=7)
+        harmonic.node_directions(7)
+    n, k = harmonic.node_directions().shape[0] * harmonic.node_directions().shape[1], len(d.controls)
+    with pytest.raises(ValueError, match=r"expected weights \("):
+        harmonic.harmonic_fill(d.constraints, np.zeros((n, k + 1)), np.zeros((n, 3)))

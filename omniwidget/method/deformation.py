@@ -132,8 +132,11 @@ class Deformation:
             return self
         if not harmonic.FILL:
             return replace(self, fill=None)
-        fill = harmonic_fill(self.constraints, self.vertices, self.faces, self.weights, reach_discs(self.handles))
-        return replace(self, fill=fill)
+        nodes = harmonic.node_directions().reshape(-1, 3)
+        face, bary = locate_points(self.vertices, self.faces, nodes)
+        weights = np.asarray(interpolate(self.weights, self.faces, face, bary), dtype=np.float64)
+        blend = _blend_sum([c.moebius.inverse for c in self.controls], weights, nodes)
+        return replace(self, fill=harmonic_fill(self.constraints, weights, blend, reach_discs(self.handles)))
 
     def forward_points(self, lonlat: ArrayLike, control: int, iterations: int = 8) -> NDArray[np.float64]:
         """Where input positions land in the output, by inverting the blend near a control.
@@ -294,10 +297,16 @@ def blended_points(
     flat = xyz.reshape(-1, 3)
     face, bary = locate_points(vertices, faces, flat)
     w = interpolate(np.asarray(weights, np.float64), faces, face, bary)
-    acc = np.zeros_like(flat)
+    return coords.xyz_to_lonlat(_blend_sum(inverses, w, flat)).reshape(xyz.shape[:-1] + (2,))
+
+
+def _blend_sum(inverses: Sequence[Moebius], weights: NDArray[np.floating], xyz: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``normalize(Σ_j W_j M_j⁻¹(p))`` at directions ``xyz`` (n, 3) with their weights (n, k): unit vectors (n, 3)."""
+    acc = np.zeros_like(xyz)
     for j, m in enumerate(inverses):
-        acc += w[:, [j]] * m.apply_xyz(flat)
-    return coords.xyz_to_lonlat(acc).reshape(xyz.shape[:-1] + (2,))
+        if np.any(weights[:, j] != 0):
+            acc += weights[:, [j]] * m.apply_xyz(xyz)
+    return acc / np.linalg.norm(acc, axis=-1, keepdims=True)
 
 
 #: The piece of a line a control is (", part 2 of 3"), left out where handles are named.

@@ -11,15 +11,19 @@ map, the squared Cauchy-Riemann residual ``|∂T/∂n - T × ∂T/∂e|²`` inte
 triangles (for a map of the sphere ``T``, east and north ``e``, ``n``: zero exactly where the
 map is conformal, as every Möbius map is). With the held nodes as boundary conditions its
 minimiser is the harmonic map that agrees with the blend around the handles and with the
-still background beyond them; it is solved once, linearised about the blend (the nodes move in
-their tangent planes), as one sparse least-squares problem.
+still background beyond them. A small smoothness term (:data:`SMOOTH`: the displacement's
+Jacobian changing from a cell to the next) on the cells next to the held nodes keeps the
+held region's corners from kinking the edges that leave it. The whole is solved once,
+linearised about the blend (the nodes move in their tangent planes), as one sparse
+least-squares problem.
 
 Held nodes, where the blend stays exactly as eq. (2) gives it:
 
-- where one handle's controls carry all the weight (a cage's inside, a point's disk and its
-  reach), or the still background does;
+- where one handle's controls carry all the weight, or the still background does;
 - within :data:`BAND` grid steps of every marked line's output, so that each line keeps the
-  map that makes it straight;
+  map that makes it straight, and of every cage's edges; inside every cage; within
+  :data:`~omniwidget.method.constraints.POINT_HOLD` and the band of every point, and within
+  the reach of every point that turns or zooms (its fade is its own);
 - on the first and last rows of nodes, round the poles: pixels nearer a pole than these see
   only them, and a ring of filled nodes would gather the whole cap onto itself.
 
@@ -45,9 +49,8 @@ from ..sphere import coords
 from ..sphere.arcs import inside_polygon
 from ..sphere.moebius import Moebius
 from .constraints import POINT_HOLD, Constraints
-from .locate import interpolate, locate_points
 
-__all__ = ["BAND", "FILL", "GRID_WIDTH", "HELD", "HarmonicFill", "harmonic_fill"]
+__all__ = ["BAND", "FILL", "GRID_WIDTH", "HELD", "SMOOTH", "HarmonicFill", "harmonic_fill", "node_directions"]
 
 #: Whether the default mode fills the blend in between the handles (the benches switch it off to compare).
 FILL = True
@@ -218,11 +221,23 @@ class HarmonicFill:
         return free[:-1] | free[1:] | np.roll(free[:-1], -1, axis=1) | np.roll(free[1:], -1, axis=1)
 
 
+def node_directions(width: int = GRID_WIDTH) -> NDArray[np.float64]:
+    """The fill's nodes: unit vectors (width / 2, width, 3) at the pixel centres of a ``width`` wide panorama.
+
+    Raises
+    ------
+    ValueError
+        For a width that is not an even number of at least 8.
+    """
+    if isinstance(width, bool) or not isinstance(width, int) or width < 8 or width % 2:
+        raise ValueError(f"width must be an even number of nodes, at least 8, got {width!r}")
+    return _grid(width).xyz
+
+
 def harmonic_fill(
     constraints: Constraints,
-    vertices: NDArray[np.float64],
-    faces: NDArray[np.int64],
-    weights: NDArray[np.float64],
+    node_weights: NDArray[np.float64],
+    node_blend: NDArray[np.float64],
     held_discs: Sequence[tuple[NDArray[np.float64], float]] = (),
     width: int = GRID_WIDTH,
 ) -> HarmonicFill | None:
@@ -231,9 +246,11 @@ def harmonic_fill(
     Parameters
     ----------
     constraints : Constraints
-        The controls (their maps and handles) and the marked lines (``constraints.lines``).
-    vertices, faces, weights : ndarray
-        The mesh, (n, 3) and (m, 3), and the blend's weights on it, (n, k), one column per control.
+        The controls (their handles) and the marked lines and cages (``constraints.lines``, ``.cages``, ``.disks``).
+    node_weights : ndarray of float64, shape (n, k)
+        The blend's weights at the nodes of :func:`node_directions` (flattened), one column per control.
+    node_blend : ndarray of float64, shape (n, 3)
+        The blend of eq. (2) at the nodes: the input directions they show, unit vectors.
     held_discs : sequence of (ndarray of shape (3,), float)
         Output directions (unit vectors) and radii (degrees) within which every node is held too
         (the reach of a point that turns or zooms, whose fade is its own).
@@ -244,18 +261,12 @@ def harmonic_fill(
     -------
     HarmonicFill or None
     """
-    if width < 8 or width % 2:
-        raise ValueError(f"width must be an even number of nodes, at least 8, got {width!r}")
-    grid = _grid(width)
+    grid = _grid(node_directions(width).shape[1])
     xyz = grid.xyz.reshape(-1, 3)
+    w, blend = np.asarray(node_weights, dtype=np.float64), np.asarray(node_blend, dtype=np.float64)
+    if w.shape != (len(xyz), len(constraints.controls)) or blend.shape != xyz.shape:
+        raise ValueError(f"expected weights ({len(xyz)}, {len(constraints.controls)}) and blend ({len(xyz)}, 3) at the nodes, got {w.shape} and {blend.shape}")
     controls = constraints.controls
-    face, bary = locate_points(vertices, faces, xyz)
-    w = interpolate(weights, faces, face, bary)
-    acc = np.zeros_like(xyz)
-    for j, c in enumerate(controls):
-        if np.any(w[:, j] != 0):
-            acc += w[:, [j]] * c.moebius.inverse.apply_xyz(xyz)
-    blend = acc / np.linalg.norm(acc, axis=-1, keepdims=True)
 
     handle = np.array([c.handle for c in controls])
     held = np.zeros(len(xyz), dtype=bool)
