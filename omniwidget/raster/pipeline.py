@@ -243,7 +243,8 @@ def blend_coordinates(
         raise ValueError("the deformation has no weights: one Möbius map does it all (warp_moebius)")
     laps = Laps(timings)
     inverses = [c.moebius.inverse for c in d.controls]
-    if _kernels.available():
+    compiled = _kernels.available()
+    if compiled:
         step = 1 if exact else coarse_step(width)
         if step > 1:
             coordinates, face, planes = sampled_coordinates(
@@ -251,25 +252,21 @@ def blend_coordinates(
             )
         else:
             coordinates, face, planes = _kernels.walk_blend(d.vertices, d.faces, d.weights, inverses, width, src_width)
-        laps("blend")
-        if d.fill is not None:
-            fill_coordinates(coordinates, d.fill, src_width)
-            laps("fill")
-        folds = fold_of_coordinates(coordinates, src_width)
-        at_folds: NDArray[np.floating] | None = None
-        if folds.area > 0:
-            where = folds.mask if step == 1 else np.asarray(folds.mask.reshape(face.shape[0], step, face.shape[1], step).any(axis=(1, 3)))
-            at_folds = _kernels.strongest_weights(where, face, planes, d.faces, d.weights)[None]
     else:
         face, bary = locate_grid(d.vertices, d.faces, width)
         laps("locate")
         coordinates = remap_coordinates(blended_inverse(inverses, mesh_pixel_weights(d.faces, d.weights, face, bary)), width, src_width)
-        laps("blend")
-        if d.fill is not None:
-            fill_coordinates(coordinates, d.fill, src_width)
-            laps("fill")
-        folds = fold_of_coordinates(coordinates, src_width)
-        at_folds = interpolate(d.weights, d.faces, face[folds.mask], bary[folds.mask]) if folds.area > 0 else None
+    laps("blend")
+    if d.fill is not None:
+        fill_coordinates(coordinates, d.fill, src_width)
+        laps("fill")
+    folds = fold_of_coordinates(coordinates, src_width)
+    at_folds: NDArray[np.floating] | None = None
+    if folds.area > 0 and compiled:
+        where = folds.mask if step == 1 else np.asarray(folds.mask.reshape(face.shape[0], step, face.shape[1], step).any(axis=(1, 3)))
+        at_folds = _kernels.strongest_weights(where, face, planes, d.faces, d.weights)[None]
+    elif folds.area > 0:
+        at_folds = interpolate(d.weights, d.faces, face[folds.mask], bary[folds.mask])
     laps("fold check")
     return coordinates, folds, at_folds
 
