@@ -322,6 +322,7 @@ class _Grid:
     d_east: Any  # scipy.sparse (t, nodes): the east derivative of a node function on each triangle
     d_north: Any
     pairs: Any  # scipy.sparse (p, t): the difference between a triangle and its twin in the next cell east or south
+    twins: NDArray[np.int64]  # (p, 2): the two triangles of each pair
     tree: Any  # scipy.spatial.cKDTree of the nodes
 
 
@@ -360,7 +361,8 @@ def _grid(width: int) -> _Grid:
     w = np.sqrt(root[first] * root[second])
     n = len(first)
     pairs = sparse.csr_matrix((np.concatenate([w, -w]), (np.tile(np.arange(n), 2), np.concatenate([first, second]))), shape=(n, len(tri)))
-    return _Grid(xyz, np.stack(np.meshgrid(lon, lat), axis=-1), tri, root, d_east, d_north, pairs, cKDTree(p))
+    twins = np.stack([first, second], axis=1)
+    return _Grid(xyz, np.stack(np.meshgrid(lon, lat), axis=-1), tri, root, d_east, d_north, pairs, twins, cKDTree(p))
 
 
 def _solve(grid: _Grid, blend: NDArray[np.float64], held: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -394,7 +396,8 @@ def _solve(grid: _Grid, blend: NDArray[np.float64], held: NDArray[np.bool_]) -> 
         rhs.append(normal[:, k1] * (d_east @ blend[:, k2]) - normal[:, k2] * (d_east @ blend[:, k1]) - d_north @ blend[:, k])
     if SMOOTH > 0:  # the displacement's Jacobian changing from cell to cell next to the held nodes: no corner of theirs kinks the map
         moved = blend - grid.xyz.reshape(-1, 3)
-        at_held = np.asarray(abs(grid.pairs) @ held[grid.triangles].any(axis=1)).ravel() > 0
+        touching = np.asarray(held[grid.triangles].any(axis=1))
+        at_held = touching[grid.twins].any(axis=1)
         for d in (grid.d_east, grid.d_north):
             change = (math.sqrt(SMOOTH) * grid.xyz.shape[1] / (2 * math.pi)) * (grid.pairs[at_held] @ d)
             change = change[np.asarray(abs(change[:, free]).sum(axis=1)).ravel() > 0]

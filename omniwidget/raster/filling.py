@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from ..method.harmonic import HarmonicFill
 from ..sphere import coords
 from . import _kernels
-from .warping import PAD, GridInverse, source_pixels
+from .warping import GridInverse, coordinates_lonlat, source_pixels
 
 __all__ = ["ROWS", "fill_coordinates", "filled_inverse"]
 
@@ -37,21 +37,15 @@ def fill_coordinates(coordinates: NDArray[np.float32], fill: HarmonicFill, src_w
         _kernels.fill_coordinates(coordinates, fill.held, fill.filled, fill.blend, fill.column_nodes(lon), fill.row_nodes(lat), src_width)
         return coordinates
     touched = fill.touched(lon, lat)
-    kx = np.float32(2 * np.pi / src_width)
     for top in range(0, len(lat), ROWS):
         block = slice(top, min(top + ROWS, len(lat)))
         rows, cols = np.nonzero(touched[block])
         if not len(rows):
             continue
         share, offset = fill.grid_affine(lon, lat[block], rows, cols)
-        xy = coordinates[block][rows, cols]
-        src_lon = (xy[:, 0] - np.float32(src_width / 2 - 0.5 + PAD)) * kx
-        src_lat = (np.float32(src_width / 4 - 0.5 + PAD) - xy[:, 1]) * kx
-        c = np.cos(src_lat)
-        shown = share[:, None] * np.stack([c * np.cos(src_lon), c * np.sin(src_lon), np.sin(src_lat)], axis=-1) + offset
-        coordinates[block][rows, cols] = source_pixels(
-            np.arctan2(shown[:, 1], shown[:, 0]), np.arctan2(shown[:, 2], np.hypot(shown[:, 0], shown[:, 1])), src_width
-        )
+        blend = coords.lonlat_to_xyz(coordinates_lonlat(coordinates[block][rows, cols], src_width, np.float32))
+        shown = np.radians(coords.xyz_to_lonlat(share[:, None] * blend + offset))
+        coordinates[block][rows, cols] = source_pixels(shown[:, 0], shown[:, 1], src_width)
     return coordinates
 
 

@@ -226,7 +226,7 @@ def blend_coordinates(
         Evaluate the blend at every output pixel, never on the coarse grid.
     timings : dict, optional
         Seconds per stage are added here: ``"locate"`` (numpy only: the compiled kernels
-        find each pixel's face as they blend), ``"blend"``, ``"fold check"``.
+        find each pixel's face as they blend), ``"blend"``, ``"fill pixels"`` (the default mode's fill, :mod:`.filling`), ``"fold check"``.
 
     Returns
     -------
@@ -259,7 +259,7 @@ def blend_coordinates(
     laps("blend")
     if d.fill is not None:
         fill_coordinates(coordinates, d.fill, src_width)
-        laps("fill")
+        laps("fill pixels")
     folds = fold_of_coordinates(coordinates, src_width)
     at_folds: NDArray[np.floating] | None = None
     if folds.area > 0 and compiled:
