@@ -412,6 +412,14 @@ def merge_arcs(
     has its middle within ``extent / 2 + gap + distance + seed length`` of the extent's
     middle. So the result is that of testing every arc not yet taken.
 
+    The seeds are grown a batch at a time (:data:`_MERGE_BATCH` of them, in their order),
+    all at once, as if each were the next (:func:`_grow_together`): each takes what it
+    would take from the arcs free before the batch and after it in the order. Then, in
+    order, a seed's cluster is kept when none of what it took has been taken since by a
+    seed before it; as the searches differ only in the arcs taken, it is then the cluster
+    the greedy loop grows. Otherwise (a seed near one just grown) it is grown again alone
+    (:func:`_grow_one`). The same clusters as the loop, in the same order.
+
     Parameters
     ----------
     a, b : ndarray of float64, shape (k, 3)
@@ -430,80 +438,267 @@ def merge_arcs(
     k = len(a)
     if k == 0:
         return []
-    mid = _unit(a + b)
-    length = np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0))
-    sample_t = np.linspace(0.0, 1.0, 5)
-    samples = _unit(a[:, None, :] * (1 - sample_t)[None, :, None] + b[:, None, :] * sample_t[None, :, None])  # (k, 5, 3) chords, normalised
-    sin_d = math.sin(math.radians(distance))
-    gap_r = math.radians(gap)
-    side = np.cross(a, b)  # the polarity: the dark side
-    normals = _unit(side)
-    points = np.stack([a, b, mid, side], axis=1)  # (k, 4, 3): what each search takes dot products of
-    middles = _EndTree(mid)
-    reach = math.radians(distance) + gap_r
+    setup = _MergeSetup.of(a, b, distance, gap, polarity)
+    order = np.argsort(-setup.length)
+    setup.rank[order] = np.arange(k)
     free = np.ones(k, dtype=bool)
-    out: list[Arc | None] = []
+    kinds: list[int] = []  # per cluster in the seeds' order: -1 alone, else the index in ``grown``
     alone: list[int] = []
-    for seed in np.argsort(-length).tolist():
-        if not free[seed]:
+    grown: list[tuple[NDArray[np.intp], FloatArray, FloatArray]] = []  # members (sorted), normal, origin
+    position = 0
+    while position < k:
+        window = order[position : position + _MERGE_BATCH]
+        position += _MERGE_BATCH
+        seeds = window[free[window]]
+        if seeds.size == 0:
             continue
-        free[seed] = False
-        members = [seed]
-        normal = normals[seed]
-        origin = a[seed]
-        lo, hi = 0.0, float(length[seed])
-        longest = hi  # no arc not yet taken is longer than the seed
-        centre = mid[seed]
-        looked: tuple[FloatArray, float, NDArray[np.intp]] | None = None  # the last search of the grid: centre, radius, arcs
-        for _ in range(4):
-            radius = 0.5 * (hi - lo) + reach + longest
-            if looked is not None and _angle(centre, looked[0]) + radius <= looked[1]:
-                cand = looked[2]  # the refitted cluster's ball lies inside the last one searched
+        if 2 * np.count_nonzero(free) < len(setup.ids):  # the grid of the middles is mostly of arcs taken: made again of those left
+            setup.ids = np.flatnonzero(free)
+            setup.middles = _EndTree(setup.mid[setup.ids])
+        first, joined, normal, origin = _grow_together(seeds, free, setup)
+        bounds, took = first.tolist(), joined.tolist()
+        for n, seed in enumerate(seeds.tolist()):
+            if not free[seed]:
+                continue  # taken by a seed before it in this batch
+            free[seed] = False
+            mine = took[bounds[n] : bounds[n + 1]]
+            if not mine:
+                kinds.append(-1)
+                alone.append(seed)
+                continue
+            if free[mine].all():  # nothing it takes was taken since: the loop's cluster
+                free[mine] = False
+                kinds.append(len(grown))
+                grown.append((np.sort(np.array([seed, *mine], dtype=np.intp)), normal[n], origin[n]))
+                continue
+            members, fitted, start = _grow_one(seed, free, setup)
+            if members.size == 1:
+                kinds.append(-1)
+                alone.append(seed)
             else:
-                wide = radius + _SEARCH_SPARE
-                cand = middles.near(centre, wide)
-                looked = (centre, wide, cand)
-            cand = cand[free[cand]]
-            cand = cand[np.abs(mid.take(cand, axis=0) @ normal) < sin_d]  # the midpoint first: it rules out most
-            if cand.size == 0:
-                break
-            other = _cross(normal, origin)
-            dots = (points.take(cand, axis=0).reshape(-1, 3) @ np.array([normal, other, origin]).T).reshape(-1, 4, 3)
-            near = np.abs(dots[:, :2, 0]).max(axis=1) < sin_d
-            if polarity:  # the same polarity: the dark side on the same side
-                near &= dots[:, 3, 0] > 0
-            if not near.any():
-                break
-            cand, dots = cand[near], dots[near]
-            ta = np.arctan2(dots[:, 0, 1], dots[:, 0, 2])
-            tb = np.arctan2(dots[:, 1, 1], dots[:, 1, 2])
-            c_lo, c_hi = np.minimum(ta, tb), np.maximum(ta, tb)
-            joins = (c_lo <= hi + gap_r) & (c_hi >= lo - gap_r) & (c_hi - c_lo < math.pi)
-            joins &= np.maximum(hi, c_hi) - np.minimum(lo, c_lo) < MAX_ARC  # an arc is the shorter way between its ends
-            if not joins.any():
-                break
-            new = cand[joins]
-            members.extend(new.tolist())
-            free[new] = False
-            lo, hi = min(lo, float(c_lo[joins].min())), max(hi, float(c_hi[joins].max()))
-            taken = np.sort(np.array(members))
-            normal = _refit(samples[taken], length[taken], normal)
-            origin = _unit(origin - (origin @ normal) * normal)
-            middle = 0.5 * (lo + hi)
-            centre = math.cos(middle) * origin + math.sin(middle) * _cross(normal, origin)
-        if len(members) > 1:
-            taken = np.sort(np.array(members))
-            out.append(_finish(a[taken], b[taken], length[taken], contrast[taken], normal, origin))
-        else:
-            alone.append(seed)
-            out.append(None)
-    singles = iter(_single_arcs(a, b, normals, length, contrast, np.array(alone, dtype=np.intp)))
-    return [next(singles) if arc is None else arc for arc in out]
+                kinds.append(len(grown))
+                grown.append((members, fitted, start))
+    singles = iter(_single_arcs(a, b, setup.normals, setup.length, contrast, np.array(alone, dtype=np.intp)))
+    merged = _finish_many(a, b, setup.length, contrast, grown)
+    return [next(singles) if kind < 0 else merged[kind] for kind in kinds]
 
 
-def _angle(u: FloatArray, v: FloatArray) -> float:
-    """The angle between unit vectors ``u`` and ``v``, radians, overestimated by at most 1e-7 (never under)."""
-    return 2.0 * math.asin(min(1.0, 0.5 * float(np.linalg.norm(u - v)))) + 1e-7
+#: Seeds grown together by :func:`merge_arcs` (the next ones in its order, those still free).
+_MERGE_BATCH = 256
+
+
+@dataclass
+class _MergeSetup:
+    """What :func:`merge_arcs`'s searches use: the arcs' points, lengths, the grid of their middles and the tolerances."""
+
+    a: FloatArray
+    b: FloatArray
+    mid: FloatArray
+    side: FloatArray
+    normals: FloatArray
+    length: FloatArray
+    samples: FloatArray
+    scatter: FloatArray
+    points: FloatArray
+    rank: NDArray[np.intp]
+    middles: _EndTree
+    ids: NDArray[np.intp]
+    sin_d: float
+    gap_r: float
+    reach: float
+    polarity: bool
+
+    @classmethod
+    def of(cls, a: FloatArray, b: FloatArray, distance: float, gap: float, polarity: bool) -> _MergeSetup:
+        mid = _unit(a + b)
+        length = np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0))
+        sample_t = np.linspace(0.0, 1.0, 5)
+        samples = _unit(a[:, None, :] * (1 - sample_t)[None, :, None] + b[:, None, :] * sample_t[None, :, None])  # (k, 5, 3) chords, normalised
+        side = np.cross(a, b)  # the polarity: the dark side
+        weighted = samples * (length / samples.shape[1])[:, None, None]
+        return cls(
+            a=a,
+            b=b,
+            mid=mid,
+            side=side,
+            normals=_unit(side),
+            length=length,
+            samples=samples,
+            scatter=np.einsum("kpi,kpj->kij", weighted, samples),  # each arc's share of a cluster's scatter (_refit's)
+            points=np.stack([a, b, mid, side], axis=1),  # (k, 4, 3): what each search takes dot products of
+            rank=np.empty(len(a), dtype=np.intp),
+            middles=_EndTree(mid),
+            ids=np.arange(len(a), dtype=np.intp),
+            sin_d=math.sin(math.radians(distance)),
+            gap_r=math.radians(gap),
+            reach=math.radians(distance) + math.radians(gap),
+            polarity=polarity,
+        )
+
+
+def _grow_together(
+    seeds: NDArray[np.intp], free: NDArray[np.bool_], setup: _MergeSetup
+) -> tuple[NDArray[np.intp], NDArray[np.intp], FloatArray, FloatArray]:
+    """Each seed's cluster grown as :func:`merge_arcs`'s loop would if it were next: all seeds at once.
+
+    Seed ``s`` may take the arcs that are ``free`` and after it in the order (``rank``).
+
+    Returns
+    -------
+    first : ndarray of intp, shape (len(seeds) + 1,)
+        Seed ``n`` took ``joined[first[n]:first[n + 1]]``.
+    joined : ndarray of intp
+        The arcs each seed took, in the order taken.
+    normal, origin : ndarray of float64, shape (len(seeds), 3)
+        Each cluster's last great circle and origin on it.
+    """
+    st = setup
+    m = len(seeds)
+    dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731 - rowwise dot products
+    normal = st.normals[seeds].copy()
+    origin = st.a[seeds].copy()
+    lo = np.zeros(m)
+    hi = st.length[seeds].copy()
+    longest = hi.copy()  # no arc a seed may take is longer than it
+    centre = st.mid[seeds].copy()
+    scatter = st.scatter[seeds].copy()
+    seed_rank = st.rank[seeds]
+    active = np.arange(m)
+    got_n: list[NDArray[np.intp]] = []
+    got_j: list[NDArray[np.intp]] = []
+    own = np.empty(0, dtype=np.int64)  # seed n took arc j: n * k + j
+    for _ in range(4):
+        radius = 0.5 * (hi[active] - lo[active]) + st.reach + longest[active]
+        # the middles near the cluster and within sin_d of its circle (the midpoint test first: it rules out most)
+        which, j = st.middles.query(centre[active], radius, normal[active], st.sin_d)
+        n, j = active[which], st.ids[j]
+        keep = free[j] & (st.rank[j] > seed_rank[n])
+        n, j = n[keep], j[keep]
+        if own.size:
+            keep = ~np.isin(n.astype(np.int64) * len(free) + j, own, assume_unique=True)
+            n, j = n[keep], j[keep]
+        c = normal[n]
+        near = np.maximum(np.abs(dot(st.a[j], c)), np.abs(dot(st.b[j], c))) < st.sin_d
+        if st.polarity:  # the same polarity: the dark side on the same side
+            near &= dot(st.side[j], c) > 0
+        n, j, c = n[near], j[near], c[near]
+        o = origin[n]
+        other = np.cross(c, o)
+        ta = np.arctan2(dot(st.a[j], other), dot(st.a[j], o))
+        tb = np.arctan2(dot(st.b[j], other), dot(st.b[j], o))
+        c_lo, c_hi = np.minimum(ta, tb), np.maximum(ta, tb)
+        low, high = lo[n], hi[n]
+        joins = (c_lo <= high + st.gap_r) & (c_hi >= low - st.gap_r) & (c_hi - c_lo < math.pi)
+        joins &= np.maximum(high, c_hi) - np.minimum(low, c_lo) < MAX_ARC  # an arc is the shorter way between its ends
+        n, j = n[joins], j[joins]
+        if n.size == 0:
+            break
+        got_n.append(n)
+        got_j.append(j)
+        own = np.sort(np.concatenate([own, n.astype(np.int64) * len(free) + j]))  # a seed's members: no longer its candidates
+        np.minimum.at(lo, n, c_lo[joins])
+        np.maximum.at(hi, n, c_hi[joins])
+        np.add.at(scatter, n, st.scatter[j])
+        active = np.unique(n)
+        fitted = np.linalg.eigh(scatter[active])[1][:, :, 0]  # _refit's: the smallest eigenvector, signed like the last
+        fitted *= np.where(dot(fitted, normal[active]) >= 0, 1.0, -1.0)[:, None]
+        normal[active] = fitted
+        o = origin[active]
+        o = _unit(o - dot(o, fitted)[:, None] * fitted)
+        origin[active] = o
+        middle = 0.5 * (lo[active] + hi[active])
+        centre[active] = np.cos(middle)[:, None] * o + np.sin(middle)[:, None] * np.cross(fitted, o)
+    if not got_n:
+        return np.zeros(m + 1, dtype=np.intp), np.empty(0, dtype=np.intp), normal, origin
+    n = np.concatenate(got_n)
+    j = np.concatenate(got_j)
+    by_seed = np.argsort(n, kind="stable")
+    return np.searchsorted(n[by_seed], np.arange(m + 1)).astype(np.intp), j[by_seed], normal, origin
+
+
+def _grow_one(seed: int, free: NDArray[np.bool_], setup: _MergeSetup) -> tuple[NDArray[np.intp], FloatArray, FloatArray]:
+    """The loop of :func:`merge_arcs` for one seed (already taken from ``free``): its members (sorted), circle and origin; ``free`` updated."""
+    st = setup
+    sin_d, gap_r = st.sin_d, st.gap_r
+    members = [seed]
+    normal = st.normals[seed]
+    origin = st.a[seed]
+    lo, hi = 0.0, float(st.length[seed])
+    longest = hi  # no arc not yet taken is longer than the seed
+    centre = st.mid[seed]
+    for _ in range(4):
+        radius = 0.5 * (hi - lo) + st.reach + longest
+        cand = st.ids[st.middles.near(centre, radius)]
+        cand = cand[free[cand]]
+        cand = cand[np.abs(st.mid.take(cand, axis=0) @ normal) < sin_d]  # the midpoint first: it rules out most
+        if cand.size == 0:
+            break
+        other = _cross(normal, origin)
+        dots = (st.points.take(cand, axis=0).reshape(-1, 3) @ np.array([normal, other, origin]).T).reshape(-1, 4, 3)
+        near = np.abs(dots[:, :2, 0]).max(axis=1) < sin_d
+        if st.polarity:  # the same polarity: the dark side on the same side
+            near &= dots[:, 3, 0] > 0
+        if not near.any():
+            break
+        cand, dots = cand[near], dots[near]
+        ta = np.arctan2(dots[:, 0, 1], dots[:, 0, 2])
+        tb = np.arctan2(dots[:, 1, 1], dots[:, 1, 2])
+        c_lo, c_hi = np.minimum(ta, tb), np.maximum(ta, tb)
+        joins = (c_lo <= hi + gap_r) & (c_hi >= lo - gap_r) & (c_hi - c_lo < math.pi)
+        joins &= np.maximum(hi, c_hi) - np.minimum(lo, c_lo) < MAX_ARC  # an arc is the shorter way between its ends
+        if not joins.any():
+            break
+        new = cand[joins]
+        members.extend(new.tolist())
+        free[new] = False
+        lo, hi = min(lo, float(c_lo[joins].min())), max(hi, float(c_hi[joins].max()))
+        taken = np.sort(np.array(members))
+        normal = _refit(st.samples[taken], st.length[taken], normal)
+        origin = _unit(origin - (origin @ normal) * normal)
+        middle = 0.5 * (lo + hi)
+        centre = math.cos(middle) * origin + math.sin(middle) * _cross(normal, origin)
+    return np.sort(np.array(members, dtype=np.intp)), normal, origin
+
+
+def _finish_many(a: FloatArray, b: FloatArray, length: FloatArray, contrast: FloatArray, grown: list[tuple[NDArray[np.intp], FloatArray, FloatArray]]) -> list[Arc]:
+    """:func:`_finish` of each cluster ``(members, normal, origin)``, all at once."""
+    if not grown:
+        return []
+    sizes = np.array([len(g[0]) for g in grown])
+    members = np.concatenate([g[0] for g in grown])
+    owner = np.repeat(np.arange(len(grown)), sizes)
+    normal = np.array([g[1] for g in grown])
+    origin = np.array([g[2] for g in grown])
+    other = np.cross(normal, origin)
+    o, t = origin[owner], other[owner]
+    dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731 - rowwise dot products
+    ta = np.arctan2(dot(a[members], t), dot(a[members], o))
+    tb = np.arctan2(dot(b[members], t), dot(b[members], o))
+    lo_each, hi_each = np.minimum(ta, tb), np.maximum(ta, tb)
+    first = np.cumsum(sizes) - sizes
+    lo = np.minimum.reduceat(lo_each, first)
+    hi = np.maximum.reduceat(hi_each, first)
+    weight = np.maximum(length[members], 1e-12)
+    shade = np.bincount(owner, weights=contrast[members] * weight) / np.bincount(owner, weights=weight)
+    # covered share of [lo, hi]: the union of the members' intervals, in order of their starts
+    order = np.lexsort((lo_each, owner))
+    lows, highs = lo_each[order].tolist(), hi_each[order].tolist()
+    covered = []
+    for low_c, count, begin in zip(lo.tolist(), sizes.tolist(), first.tolist(), strict=True):
+        total, reach = 0.0, low_c
+        for low, stop in zip(lows[begin : begin + count], highs[begin : begin + count], strict=True):
+            start = max(low, reach)
+            if stop > start:
+                total += stop - start
+                reach = stop
+        covered.append(total)
+    span = hi - lo
+    start_v = np.cos(lo)[:, None] * origin + np.sin(lo)[:, None] * other
+    end_v = np.cos(hi)[:, None] * origin + np.sin(hi)[:, None] * other
+    return [
+        Arc(start=s, end=e, contrast=float(c), coverage=float(min(1.0, cov / sp)) if sp > 0 else 1.0, pieces=int(p))
+        for s, e, c, cov, sp, p in zip(start_v, end_v, shade.tolist(), covered, span.tolist(), sizes.tolist(), strict=True)
+    ]
 
 
 def _cross(u: FloatArray, v: FloatArray) -> FloatArray:
@@ -516,12 +711,9 @@ def _cross(u: FloatArray, v: FloatArray) -> FloatArray:
 #: Added to every search radius of :class:`_EndTree` (radians): the rounding, and an arc's extent
 #: along another circle a little longer than its own length (by ``1 / cos(distance)`` at most).
 _TREE_MARGIN = math.radians(1.0)
-#: How much wider (radians) :func:`merge_arcs` searches the grid than it needs: the refitted cluster's
-#: next search is then mostly inside the last one, and the grid is not searched again.
-_SEARCH_SPARE = math.radians(1.5)
 #: Side of the grid's cubes (:class:`_EndTree`), in the unit vectors' coordinates: about 6 degrees.
 _GRID_CELL = 0.1
-#: Relative loosening of the first searches' tests (:func:`_first_joins`) against rounding.
+#: Relative loosening of :func:`pair_bands`'s first tests, all pairs at once, against rounding.
 _LOOSE = 1e-9
 
 
@@ -571,8 +763,14 @@ class _EndTree:
         near = self.points[found] @ point >= 1.0 - 0.5 * chord * chord  # within the chord: the dot product of unit vectors
         return self.owner[found[near]]
 
-    def query(self, points: FloatArray, angles: NDArray | float) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-        """``(i, j)``: arc ``j`` has a point within ``angles[i]`` radians (plus the margin) of ``points[i]``, all at once."""
+    def query(
+        self, points: FloatArray, angles: NDArray | float, circles: FloatArray | None = None, band: float = 0.0
+    ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """``(i, j)``: arc ``j`` has a point within ``angles[i]`` radians (plus the margin) of ``points[i]``, all at once.
+
+        With ``circles`` (unit normals, one per point), only the points ``p`` with
+        ``|p · circles[i]| < band`` as well: near that great circle.
+        """
         chord = 2.0 * np.sin(np.minimum(np.broadcast_to(np.asarray(angles, dtype=np.float64), len(points)) + _TREE_MARGIN, math.pi) / 2) + 1e-12
         lo = np.clip(np.floor((points - chord[:, None] + 1.0) / _GRID_CELL).astype(np.int64), 0, self.m - 1)
         hi = np.clip(np.floor((points + chord[:, None] + 1.0) / _GRID_CELL).astype(np.int64), 0, self.m - 1)
@@ -587,6 +785,9 @@ class _EndTree:
         which = np.repeat(which, count)
         found = np.repeat(starts - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
         near = np.einsum("ij,ij->i", self.points[found], points[which]) >= 1.0 - 0.5 * chord[which] ** 2
+        if circles is not None:
+            found, which = found[near], which[near]
+            near = np.abs(np.einsum("ij,ij->i", self.points[found], circles[which])) < band
         return which[near], self.owner[found[near]]
 
     def pairs(self, *balls: tuple[FloatArray, FloatArray]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
