@@ -381,9 +381,10 @@ def _scores(
 ) -> FloatArray:
     """Each candidate's score, ``Σ 1 / σ_i`` over the arcs that vote for it (:func:`level`'s ``votes``), shape (m,).
 
-    The same sums as over the whole ``(k, m)`` table of votes: the dot products are taken
-    for all of it, but the rest only where an arc's circle passes within ``cap`` of the
-    candidate (few do), and the sums add the voters in the arcs' order.
+    The same sums as over the whole ``(k, m)`` table of votes: the normals' dot products are
+    taken for all of it, the rest (the other dot products too) only where an arc's circle
+    passes within ``cap`` of the candidate (few do), and the sums add the voters in the arcs'
+    order.
 
     Parameters
     ----------
@@ -397,16 +398,18 @@ def _scores(
     cap, polar : float
         The sine of :data:`INLIER_DISTANCE` and the cosine of :data:`POLAR_CAP`.
     """
-    product = lambda u: np.einsum("ij,jk->ik", u, v)  # noqa: E731 - numpy's loop: BLAS in threads stalls on these thin products when the cores are busy
-    dots = np.abs(product(normals))
+    v = np.ascontiguousarray(v)  # einsum is several times slower on a transposed view
+    # numpy's loop, not BLAS: BLAS in threads stalls on this thin product when the cores are busy
+    dots = np.abs(np.einsum("ij,jk->ik", normals, v))
     rows, cols = np.nonzero(dots < cap)  # a vote needs arcsin(x) < cap, so x < cap: these are all the voters and more
     r = np.arcsin(np.clip(dots[rows, cols], 0.0, 1.0))
-    start = product(ends_a)[rows, cols]
-    t = np.arctan2(product(along)[rows, cols], start)  # the angle along each circle of the point nearest to v
+    # the other products only where an arc is near: its start, tangent and end with the candidate
+    start, tangent, end = np.einsum("ijk,ik->ji", np.stack([ends_a, along, ends_b], axis=1)[rows], v.T[cols])
+    t = np.arctan2(tangent, start)  # the angle along each circle of the point nearest to v
     opposite = np.where(t > 0, t - np.pi, t + np.pi)  # and of the point nearest to -v
     span = spans[rows]
     passes = ((t > 0) & (t < span)) | ((opposite > 0) & (opposite < span))
-    far = ~passes & (np.maximum(np.abs(start), np.abs(product(ends_b)[rows, cols])) < polar)
+    far = ~passes & (np.maximum(np.abs(start), np.abs(end)) < polar)
     vote = (r < INLIER_SIGMAS * sigma[rows]) & (r < cap) & far
     return np.asarray(np.bincount(cols[vote], weights=1.0 / sigma[rows[vote]], minlength=v.shape[1]), dtype=np.float64)
 
