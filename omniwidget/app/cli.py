@@ -678,7 +678,7 @@ def _cmd_level(args: argparse.Namespace) -> None:
 
 def _cmd_suggest(args: argparse.Namespace) -> None:
     """``omniwidget suggest``: a handles file of line handles along the straight edges found (best first)."""
-    from ..detect import level, level_document, suggest_lines, suggestions_to_handles
+    from ..detect import DETECT_WIDTH, level, level_document, suggest_lines, suggestions_to_handles
     from ..document.handles import Handles
     from ..errors import ImageError
     from ..io.images import read_panorama, write_bytes
@@ -688,7 +688,9 @@ def _cmd_suggest(args: argparse.Namespace) -> None:
     _refuse_overwrites(args, [("-o", args.output)])
     if args.max_lines < 1:
         raise ImageError(f"--max-lines {args.max_lines}: at least one line")
-    image = read_panorama(args.input, args.fit)
+    # the lines are found at DETECT_WIDTH at most: a JPEG at least twice as wide is decoded reduced (libjpeg's DCT
+    # scaling, an average over each block), suggest_lines takes it the rest of the way
+    image = read_panorama(args.input, args.fit, width=DETECT_WIDTH)
     suggestions = suggest_lines(image, max_lines=None)  # all of them: --level looks among every edge, not only the best
     handles = suggestions_to_handles(suggestions[: args.max_lines])
     note = ""
