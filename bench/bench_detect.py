@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import os
 import pstats
 import statistics
 import subprocess
@@ -126,7 +127,8 @@ def photos(folder: Path, args: argparse.Namespace) -> None:
             "suggest_lines": partial(ow.suggest_lines, image, detector=args.detector),
             "level": partial(_level, image),
         }
-        print(f"{path.name} ({image.shape[1]} x {image.shape[0]}), medians of {args.repeat} runs in turns")
+        load = " / ".join(f"{x:.1f}" for x in os.getloadavg())
+        print(f"{path.name} ({image.shape[1]} x {image.shape[0]}), medians of {args.repeat} runs in turns (load average {load})")
         medians = report(timed(runs, args.repeat), "plain detector, 6 faces", "    ")
         whole = process_times(path, args.process_repeat) if args.process else {}
         if whole:
