@@ -326,17 +326,27 @@ def _cmd_warp(args: argparse.Namespace) -> None:
 
 
 def _warp_one(args: argparse.Namespace) -> None:
+    import numpy as np
+
     from ..document.handles import load_handles
     from ..io.images import check_writable, read_panorama, write_bytes
-    from ..raster.strips import STREAM_WIDTH
+    from ..raster.strips import MAP_WIDTH, STREAM_WIDTH
 
     (source,) = args.input
     _check_output(args.output, _IMAGE_SUFFIXES, "output image")
     _refuse_overwrites(args, [("-o", args.output), ("--map", args.map)])
     handles = load_handles(args.handles)
-    image = read_panorama(source, args.fit, width=args.width, warp=True)  # refused before decoding if the warp cannot fit
+    in_strips, disk = _in_strips(args, source)
+    if disk is not None:  # too large to hold: read a patch at a time
+        with disk:
+            check_writable(args.output, np.empty((0, *disk.shape[1:]), disk.dtype))
+            map_image = read_panorama(source, width=MAP_WIDTH)  # counted by _in_strips' check
+            _warp_in_strips(args, disk, handles, map_image)
+        return
+    # refused before decoding if the warp cannot fit
+    image = read_panorama(source, args.fit, width=args.width, warp=True, streamed=in_strips)
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
-    if (args.width or image.shape[1]) > STREAM_WIDTH:
+    if in_strips or (args.width or image.shape[1]) > STREAM_WIDTH:
         _warp_in_strips(args, image, handles)
         return
     result, outputs = _warped_outputs(args, image, handles)
@@ -345,17 +355,45 @@ def _warp_one(args: argparse.Namespace) -> None:
     _say(args, f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; {_headline(result)}")
 
 
-def _warp_in_strips(args: argparse.Namespace, image: Any, handles: Any) -> None:
+def _in_strips(args: argparse.Namespace, source: Path) -> tuple[bool, Any]:
+    """Whether the warp is made in strips, and the panorama as a :class:`~omniwidget.io.large.DiskPanorama` when it stays on disk.
+
+    In strips: an output wider than :data:`~omniwidget.raster.strips.STREAM_WIDTH`, or one whose warp in memory would
+    not fit where the strips' does. On disk: a panorama in strips larger than :data:`~omniwidget.io.large.STREAM_BYTES`
+    decoded (:func:`~omniwidget.io.large.plan_read`). Refused (before decoding) when even so it would not fit, or when
+    ``--fit`` asks to reshape a panorama that large.
+    """
+    from ..errors import ImageError
+    from ..io.images import available_memory, check_fits, image_header, memory_needed
+    from ..io.large import open_on_disk, plan_read
+    from ..raster.strips import STREAM_WIDTH
+
+    header = image_header(source)
+    if header is None:
+        return False, None  # its size is known once it is decoded
+    have = available_memory()
+    if (args.width or max(header.width, header.height)) <= STREAM_WIDTH and (have is None or memory_needed(source, warp=True, width=args.width) <= have):
+        return False, None
+    if plan_read(header, args.width, strips=True).how != "disk":
+        return True, None
+    if header.width != 2 * header.height:
+        raise ImageError(f"{source}: a {header.width} x {header.height} image is not 2:1, and one this large ({header.describe()}) cannot be made 2:1 (--fit) in memory")
+    check_fits(source, warp=True, width=args.width, streamed=True)
+    return True, open_on_disk(source, header)
+
+
+def _warp_in_strips(args: argparse.Namespace, image: Any, handles: Any, map_image: Any = None) -> None:
     """A warp wider than :data:`~omniwidget.raster.strips.STREAM_WIDTH`: the method on its map grid, the output written in strips.
 
-    The image is written before the map (each whole or not at all): a failure writing the map leaves the image.
+    ``image`` may be a panorama on disk, with ``map_image`` a reduced copy of it. The image is written before the map
+    (each whole or not at all): a failure writing the map leaves the image.
     """
     import numpy as np
 
     from ..io.images import write_image_strips
     from ..raster.strips import MAP_WIDTH, warp_in_strips
 
-    made = warp_in_strips(image, handles, width=args.width, order=args.order, warn=False)
+    made = warp_in_strips(image, handles, width=args.width, order=args.order, warn=False, map_image=map_image)
     for message in made.result.warnings:
         print(f"omniwidget: warning: {message}", file=sys.stderr)
     height, width = made.shape[:2]

@@ -39,7 +39,7 @@ from .._files import atomic_write_bytes
 from ..document.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
 from ..errors import HandlesError, ImageError, NotRegularFileError, OmniwidgetError, VideoError
 from ..io.draw import display_rgb
-from ..io.images import asked_reduction, check_format, check_panorama, image_header, read_image, write_image
+from ..io.images import check_format, check_panorama, image_header, read_image, write_image
 from ..sphere import coords
 from ._latest import Latest
 
@@ -173,13 +173,14 @@ def _digest(data: bytes | memoryview) -> str:
 
 
 def _open(path: Path, preview_width: int) -> tuple[NDArray, int]:
-    """The panorama at ``path`` and its reduction: a JPEG wider than :data:`LAZY_WIDTH` decoded reduced to what the editor shows."""
+    """The panorama at ``path`` and its reduction: one wider than :data:`LAZY_WIDTH` decoded reduced to what the editor shows."""
     from ..detect import DETECT_WIDTH
+    from ..io.large import plan_read
 
     header = image_header(path)
     if header is not None and max(header.width, header.height) > LAZY_WIDTH:
         needed = max(DISPLAY_WIDTH, 2 * preview_width, DETECT_WIDTH)
-        reduced = asked_reduction(header, needed)
+        reduced = plan_read(header, needed).reduce  # a JPEG by libjpeg; another format above STREAM_BYTES in strips
         if reduced > 1:
             return read_image(path, width=needed), reduced
     return read_image(path), 1
@@ -1123,20 +1124,73 @@ class EditingSession:
         The editor's Save image button does the same in the editor's worker (the widget never waits)
         and also offers the file as a browser download.
         """
+        if self._in_strips():
+            try:
+                return self._save_in_strips(self.document, path)
+            except Exception as exc:
+                self._report_error(self._save_image_error(exc))
+                raise
         try:
             result = self._full(self.document, self._key(), warn=False)
             written = self._write_result(result.image, path)
         except Exception as exc:
             self._report_error(self._save_image_error(exc))
             raise
-        self._say_saved(written, result.image)
+        self._say_saved(written, result.image.shape)
         return written
 
+    def _in_strips(self) -> bool:
+        """Whether Save image makes the result in strips: a panorama file wider than the command line's STREAM_WIDTH."""
+        from ..raster.strips import STREAM_WIDTH
+
+        return self._image_path is not None and self._video is None and self._width > STREAM_WIDTH
+
+    def _save_in_strips(self, doc: Handles, path: str | os.PathLike[str] | None) -> Path:
+        """Save image for a panorama too large to warp whole: made and written in strips, its progress in :attr:`status`.
+
+        The panorama is read from disk a patch at a time when it is larger than
+        :data:`~omniwidget.io.large.STREAM_BYTES` decoded (:func:`~omniwidget.io.large.plan_read`),
+        else read whole; the method runs on its map grid (:func:`~omniwidget.raster.strips.warp_in_strips`).
+        ``status["saving"]`` says the rows written and their total as they go, and the message the share.
+        """
+        from contextlib import nullcontext
+
+        from ..io.images import check_fits, read_panorama, write_image_strips
+        from ..io.large import open_on_disk, plan_read
+        from ..raster.strips import MAP_WIDTH, warp_in_strips
+
+        source_path = self._image_path
+        if source_path is None:  # pragma: no cover - _in_strips says so
+            raise ImageError("only a panorama opened from a file is saved in strips")
+        header = image_header(source_path)
+        on_disk = header is not None and plan_read(header, None, strips=True).how == "disk"
+        check_fits(source_path, warp=True, streamed=on_disk)
+        probe = np.empty((0, self._width, *self._working.shape[2:]), self._working.dtype)
+        target = self._target(path, probe)
+        height = self._width // 2
+        self._set_status(message=f"saving {target.name} ({self._width} x {height}): reading the panorama...", saving={"done": 0, "total": height})
+        opened = open_on_disk(source_path, header) if on_disk and header is not None else nullcontext(None)
+        with opened as disk:
+            map_image = read_panorama(source_path, width=MAP_WIDTH) if disk is not None else None
+            made = warp_in_strips(disk if disk is not None else self.image, doc, warn=False, map_image=map_image)
+
+            def progress(rows: int) -> None:
+                self._set_status(message=f"saving {target.name}: {100 * rows // height}% of {height} rows", saving={"done": rows, "total": height})
+
+            write_image_strips(target, made.shape, made.dtype, made.image_strips(), progress=progress)
+        self._say_saved(target, made.shape)
+        return target
+
     def _write_result(self, image: NDArray, path: str | os.PathLike[str] | None) -> Path:
+        target = self._target(path, image)
+        write_image(target, image)
+        return target
+
+    def _target(self, path: str | os.PathLike[str] | None, image: NDArray) -> Path:
+        """Where Save image writes ``image`` (:func:`_result_location`), refused if it is the input panorama."""
         target = Path(path) if path is not None else _result_location(self._image_path, image)
         if self._image_path is not None and _same_file(target, self._image_path):
             raise ImageError(f"{target}: is the input panorama, which the editor never overwrites; name another file")
-        write_image(target, image)
         return target
 
     @staticmethod
@@ -1145,13 +1199,24 @@ class EditingSession:
         text = str(exc) if isinstance(exc, ImageError) else _exception_text(exc)
         return f"could not save the image: {text}; the handles are kept"
 
-    def _say_saved(self, path: Path, image: NDArray) -> None:
+    def _say_saved(self, path: Path, shape: tuple[int, ...]) -> None:
         with self._lock:
-            message = f"{image.shape[1]} x {image.shape[0]} saved to {path}"
-            self._set_status(message=message, saved=str(path))
+            message = f"{shape[1]} x {shape[0]} saved to {path}"
+            self._set_status(message=message, saved=str(path), saving=None)
 
     def _save_image_job(self, doc: Handles, key: str, generation: int) -> None:
-        """In the worker: compute and show the full-size result, write it and send it for download."""
+        """In the worker: compute and show the full-size result, write it and send it for download.
+
+        A panorama made in strips (:meth:`_in_strips`) is written without being shown or sent: a file of
+        gigabytes is no browser download; the status names where it is.
+        """
+        if self._in_strips():
+            try:
+                self._save_in_strips(doc, None)
+            except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
+                self.last_error = exc
+                self._report_error(self._save_image_error(exc))
+            return
         result = self._compute(doc, key, generation, full=True)
         if result is None:
             return  # the computation's error is shown
@@ -1162,7 +1227,7 @@ class EditingSession:
             self.last_error = exc
             self._report_error(self._save_image_error(exc))
             return
-        self._say_saved(path, result.image)
+        self._say_saved(path, result.image.shape)
         mime = _MIME.get(path.suffix.lower(), "application/octet-stream")
         self._on_message({"op": "image_file", "name": path.name, "mime": mime}, [data])
 

@@ -28,6 +28,8 @@ from numpy.typing import NDArray
 from .._checks import SUPPORTED_DTYPES, check_image, check_panorama, require_regular_file
 from .._files import atomic_write_bytes, commit, remove_leftovers, temporary_file
 from ..errors import ImageError, NotRegularFileError
+from . import large
+from .large import REDUCE_ROWS, ReadPlan, asked_reduction, plan_read, read_reduced
 
 __all__ = [
     "FITS",
@@ -68,6 +70,8 @@ _DEPTH_SUFFIXES = {
     np.float64: (".tif", ".tiff"),
 }
 _NO_ALPHA = (".jpg", ".jpeg")
+#: The widest image a format holds.
+_MAX_SIDE = {".jpg": 65535, ".jpeg": 65535, ".webp": 16383}
 
 
 # --- checks ------------------------------------------------------------------------------
@@ -669,57 +673,48 @@ def _warp_output(header: ImageHeader, width: int | None) -> tuple[int, int]:
     return w, w * max(w // 2, 1)
 
 
-def _needed(header: ImageHeader, *, warp: bool, width: int | None, reduce: int = 1) -> int:
-    """Peak bytes of reading the image (decoded at ``1 / reduce`` of its size) and, with ``warp``, of warping it."""
+def _plan(header: ImageHeader, *, width: int | None, reduce: bool = True, streamed: bool = False) -> ReadPlan:
+    """How the file is read (:func:`omniwidget.io.large.plan_read`); left on disk only when ``streamed`` (a warp made in strips)."""
+    if not reduce:
+        return ReadPlan("whole", 1)
+    return plan_read(header, width, strips=streamed)
+
+
+def _needed(header: ImageHeader, *, warp: bool, width: int | None, plan: ReadPlan, streamed: bool = False) -> int:
+    """Peak bytes of reading the image as ``plan`` says and, with ``warp``, of warping it (in strips when ``streamed`` or wide)."""
     from ..raster.warping import PAD, PATCH_PIXELS, REMAP_LIMIT
 
-    image = header.nbytes // (reduce * reduce)
-    reading = header.file_bytes + 2 * image  # the file, the decoded pixels and their copy in RGB order (or turned)
-    if not warp:
-        return reading
+    image = header.nbytes // (plan.reduce * plan.reduce)
+    if plan.how == "disk":  # a patch at a time from disk; the method runs on a copy reduced for the map grid
+        from ..raster.strips import MAP_WIDTH
+
+        copy = _plan(header, width=MAP_WIDTH)
+        reading = _needed(header, warp=False, width=MAP_WIDTH, plan=copy)
+        image, source = header.nbytes // (copy.reduce * copy.reduce), PATCH_PIXELS * header.bytes_per_pixel
+    else:
+        if plan.how == "reduced":  # decoded in strips: the output and a band of rows at full size
+            reading = image + REDUCE_ROWS * plan.reduce * header.width * header.bytes_per_pixel * 2
+        else:  # the file, the decoded pixels and their copy in RGB order (or turned)
+            reading = header.file_bytes + 2 * image
+        if not warp:
+            return reading
+        if max(header.width, header.height) // plan.reduce + 2 * PAD < REMAP_LIMIT:
+            source = WARP_INPUT_COPIES * image
+        else:  # resampled in tiles (remap_panorama): no padded copy, one patch at a time
+            source = image + PATCH_PIXELS * header.bytes_per_pixel
     from ..raster.strips import MAP_WIDTH, STREAM_WIDTH, STRIP_ROWS
 
     w, pixels = _warp_output(header, width)
-    if max(header.width, header.height) // reduce + 2 * PAD < REMAP_LIMIT:
-        source = WARP_INPUT_COPIES * image
-    else:  # resampled in tiles (remap_panorama): no padded copy, one patch at a time
-        source = image + PATCH_PIXELS * header.bytes_per_pixel
-    if w <= STREAM_WIDTH:
+    if not streamed and w <= STREAM_WIDTH:
         return max(reading, source + pixels * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel))
     # made in strips (omniwidget.raster.strips): the warp on the map grid, its unit vectors (12 bytes, twice while
     # padded), a strip's interpolation, and the output gathered whole where its format is not written in strips
     grid = MAP_WIDTH * (MAP_WIDTH // 2)
     strip = STRIP_ROWS * w * STRIP_BYTES_PER_PIXEL
-    return max(reading, source + grid * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel + 24) + strip + pixels * header.bytes_per_pixel)
+    return max(reading, source + grid * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel + 24) + strip)
 
 
-def asked_reduction(header: ImageHeader, width: int | None) -> int:
-    """How much a panorama wanted ``width`` wide is reduced as it is decoded: 1, 2, 4 or 8.
-
-    A JPEG at least twice as wide as ``width`` is decoded at 1/2, 1/4 or 1/8 of its size
-    by libjpeg's DCT scaling (an average over each block, so no aliasing), the most that
-    keeps it at least ``width`` wide and 2:1 (both sides divisible); other formats, and a
-    JPEG no wider than twice ``width``, are decoded whole (1).
-
-    Parameters
-    ----------
-    header : ImageHeader
-        From :func:`image_header`.
-    width : int or None
-        The width it is wanted at; None: its own (1).
-
-    Returns
-    -------
-    int
-    """
-    if header.format != "JPEG" or width is None:
-        return 1
-    longer = max(header.width, header.height)  # the panorama's width, whichever way its EXIF orientation turns it
-    whole = [f for f in _REDUCTIONS if header.width % f == 0 and header.height % f == 0 and longer // f >= width]
-    return max(whole, default=1)
-
-
-def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: int | None = None) -> int:
+def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: int | None = None, streamed: bool = False) -> int:
     """Peak bytes of reading an image file (and of warping it), estimated from its header.
 
     Reading holds the file's bytes, the decoded pixels and one copy of them (OpenCV's BGR
@@ -731,10 +726,11 @@ def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: in
     35)"): the estimate is 7 to 15% above it for warps to the input's width from 2048 to
     12000 (the three copies of the input and the per-pixel arrays are not all held at
     once), up to 50% above for a warp to half the width; the Python process itself (about
-    150 MB) is not counted. A JPEG is counted at the size it is decoded at for ``width``
-    (:func:`asked_reduction`); a panorama resampled in tiles (32,767 px a side or more,
-    :func:`~omniwidget.raster.warping.remap_panorama`) with one copy of the input and one
-    patch.
+    150 MB) is not counted. A file is counted at the size it is decoded at for ``width``
+    (:func:`omniwidget.io.large.plan_read`: a JPEG reduced by libjpeg, another file above
+    :data:`~omniwidget.io.large.STREAM_BYTES` reduced in strips); a panorama resampled in
+    tiles (32,767 px a side or more, :func:`~omniwidget.raster.warping.remap_panorama`)
+    with one copy of the input and one patch.
 
     Parameters
     ----------
@@ -743,6 +739,12 @@ def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: in
         Count a warp of the image too.
     width : int, optional
         The warp's output width; default: the panorama's own (its longer side).
+    streamed : bool
+        The warp is made in strips whatever its width
+        (:func:`~omniwidget.raster.strips.warp_in_strips`; it always is above
+        :data:`~omniwidget.raster.strips.STREAM_WIDTH`) and may leave a large panorama on
+        disk (:func:`omniwidget.io.large.plan_read`): counted with one patch of it and a
+        copy reduced for the map grid instead of the whole image.
 
     Returns
     -------
@@ -754,7 +756,7 @@ def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: in
         As :func:`decode_bytes`.
     """
     header = _known_header(path)
-    return _needed(header, warp=warp, width=width, reduce=asked_reduction(header, width))
+    return _needed(header, warp=warp, width=width, plan=_plan(header, width=width, streamed=streamed), streamed=streamed)
 
 
 def _meminfo(name: str) -> int | None:
@@ -853,7 +855,7 @@ def _refusal(path: Path, header: ImageHeader, need: int, have: int, *, warp: boo
     return ImageError(f"{path}: {header.describe()}; {what} needs about {_gigabytes(need)} and {_gigabytes(have)} is available: {how}")
 
 
-def check_fits(path: str | os.PathLike[str], *, warp: bool = False, width: int | None = None) -> ImageHeader | None:
+def check_fits(path: str | os.PathLike[str], *, warp: bool = False, width: int | None = None, streamed: bool = False) -> ImageHeader | None:
     """Refuse, before decoding, an image whose reading (and warp) would not fit in the memory available.
 
     Parameters
@@ -864,6 +866,8 @@ def check_fits(path: str | os.PathLike[str], *, warp: bool = False, width: int |
     width : int, optional
         The warp's output width; default: the panorama's own. A JPEG is counted at the
         size it will be decoded at (:func:`asked_reduction`).
+    streamed : bool
+        As for :func:`memory_needed`.
 
     Returns
     -------
@@ -884,7 +888,7 @@ def check_fits(path: str | os.PathLike[str], *, warp: bool = False, width: int |
     """
     header = image_header(path)
     if header is not None:
-        _reduction(Path(path), header, warp=warp, width=width)
+        _reduction(Path(path), header, warp=warp, width=width, streamed=streamed)
     return header
 
 
@@ -923,25 +927,30 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width:
     return _read_image(Path(path), orientation=orientation, width=width, warp=False)
 
 
-def _reduction(path: Path, header: ImageHeader | None, *, warp: bool, width: int | None, reduce: bool = True) -> int:
-    """The reduction ``path`` is decoded at (:func:`asked_reduction`, or 1 without ``reduce``), once it fits in memory; else refused."""
+def _reduction(
+    path: Path, header: ImageHeader | None, *, warp: bool, width: int | None, reduce: bool = True, streamed: bool = False
+) -> ReadPlan:
+    """How ``path`` is read (:func:`_plan`), once it fits in memory; else refused."""
     if header is None:
-        return 1
-    factor = asked_reduction(header, width) if reduce else 1
+        return ReadPlan("whole", 1)
+    plan = _plan(header, width=width, reduce=reduce, streamed=streamed)
     have = available_memory()
-    if have is not None and (need := _needed(header, warp=warp, width=width, reduce=factor)) > have:
+    if have is not None and (need := _needed(header, warp=warp, width=width, plan=plan, streamed=streamed)) > have:
         raise _refusal(path, header, need, have, warp=warp, width=width)
-    return factor
+    return plan
 
 
-def _read_image(path: Path, *, orientation: bool, width: int | None, warp: bool, reduce: bool = True) -> NDArray:
+def _read_image(path: Path, *, orientation: bool, width: int | None, warp: bool, reduce: bool = True, streamed: bool = False) -> NDArray:
     import cv2
 
     path = Path(path)
     if path.is_dir():
         raise ImageError(f"{path}: is a folder, not an image file")
     header = image_header(path)  # refuses a FIFO or a device: the read would hang, or never end
-    factor = _reduction(path, header, warp=warp, width=width, reduce=reduce)
+    plan = _reduction(path, header, warp=warp, width=width, reduce=reduce, streamed=streamed)
+    if plan.how == "reduced" and header is not None:
+        return read_reduced(path, header, plan.reduce)
+    factor = plan.reduce
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -1011,7 +1020,13 @@ def _swap_red_blue(image: NDArray) -> NDArray:
 
 
 def read_panorama(
-    path: str | os.PathLike[str], fit: Fit | None = None, *, width: int | None = None, warp: bool = False, reduce: bool = True
+    path: str | os.PathLike[str],
+    fit: Fit | None = None,
+    *,
+    width: int | None = None,
+    warp: bool = False,
+    reduce: bool = True,
+    streamed: bool = False,
 ) -> NDArray:
     """Read an equirectangular panorama: :func:`read_image`, made 2:1 as ``fit`` says, then :func:`check_panorama`.
 
@@ -1029,6 +1044,10 @@ def read_panorama(
     reduce : bool
         False: decode it whole whatever ``width`` says (frames that must share one size
         whatever their formats); the memory is then counted whole.
+    streamed : bool
+        The warp will be made in strips (:func:`memory_needed`): counted so. The caller
+        reads a panorama that :func:`omniwidget.io.large.plan_read` leaves on disk with
+        :func:`omniwidget.io.large.open_on_disk` instead.
 
     Returns
     -------
@@ -1039,7 +1058,7 @@ def read_panorama(
     ImageError
         Naming the file and what is wrong with it.
     """
-    image = _read_image(Path(path), orientation=True, width=width, warp=warp, reduce=reduce)
+    image = _read_image(Path(path), orientation=True, width=width, warp=warp, reduce=reduce, streamed=streamed)
     if fit is not None:
         image = to_equirectangular(image, fit, str(path))
     return check_panorama(image, str(path))
@@ -1083,6 +1102,8 @@ def check_format(path: Path, image: NDArray) -> None:
         raise ImageError(
             f"{path}: cannot write a {image.dtype} image as {suffix or 'a file without suffix'} (use {', '.join(allowed + ('.npy',))})"
         )
+    if (limit := _MAX_SIDE.get(suffix)) is not None and image.shape[1] > limit:
+        raise ImageError(f"{path}: {suffix} holds images at most {limit} px wide, this one is {image.shape[1]} (write .png or .tif)")
     if suffix in _NO_ALPHA and image.ndim == 3 and image.shape[2] in (2, 4):
         raise ImageError(f"{path}: JPEG has no alpha channel; write .png, .tif, .webp or .npy to keep it, or drop it (image[..., :-1])")
 
@@ -1142,7 +1163,7 @@ def write_image(path: str | os.PathLike[str], image: NDArray) -> None:
 
 
 #: Suffixes :func:`write_image_strips` writes strip by strip (the others are gathered whole first).
-STRIP_SUFFIXES = (".npy", ".tif", ".tiff")
+STRIP_SUFFIXES = (".npy", ".tif", ".tiff", ".png", ".jpg", ".jpeg")
 #: The side of a TIFF written in strips' tiles.
 TIFF_TILE = 256
 
@@ -1184,10 +1205,14 @@ def write_image_strips(
 ) -> None:
     """Write an image given as strips of rows, whole or not at all, holding one strip at a time where the format allows.
 
-    ``.npy`` is written into a memory-mapped file and TIFF (BigTIFF, tiles of
-    :data:`TIFF_TILE` pixels, deflate level 1) a row of tiles at a time as the strips come,
-    so memory holds about one strip; PNG, JPEG and the others are
-    gathered into one array and encoded (OpenCV encodes whole images). Written to a hidden
+    ``.npy`` is written row after row after its header (a file ``np.load`` can memory-map),
+    TIFF (BigTIFF, tiles of :data:`TIFF_TILE` pixels, deflate level 1) a row of tiles at a
+    time as the strips come, PNG deflated as they come
+    (:func:`omniwidget.io.large.write_png_strips`) and JPEG encoded by libvips from the
+    rows held on disk (:func:`omniwidget.io.large.write_jpeg_strips`), so memory holds about
+    one strip; the other formats are gathered into one array and encoded (OpenCV encodes
+    whole images). A ``.npy`` larger than the free disk is refused before any work, its
+    size said. Written to a hidden
     temporary file beside ``path`` and renamed over it at the end, synced (as
     :func:`write_image`); on any error, Ctrl+C included, the temporary file is removed.
 
@@ -1236,14 +1261,21 @@ def write_image_strips(
     if suffix not in STRIP_SUFFIXES:
         write_image(path, fill(np.empty(shape, dtype)))
         return
+    if suffix == ".npy":
+        large.check_free_disk(path.parent, math.prod(shape) * dtype.itemsize, f"{path}: a {' x '.join(map(str, shape))} {dtype} array")
     remove_leftovers(path)
     fd, tmp = temporary_file(path)
     try:
-        if suffix == ".npy":
-            mapped = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=shape)
-            fill(mapped)
-            mapped.flush()
-            del mapped
+        if suffix in (".npy", ".png"):
+            with open(fd, "wb", closefd=False) as fh:
+                if suffix == ".png":
+                    large.write_png_strips(fh, shape, dtype, checked())
+                else:
+                    np.lib.format.write_array_header_2_0(fh, {"descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False, "shape": shape})
+                    for strip in checked():
+                        fh.write(np.ascontiguousarray(strip).data)
+        elif suffix in (".jpg", ".jpeg"):
+            large.write_jpeg_strips(tmp, shape, checked())
         else:
             import tifffile
 
@@ -1260,6 +1292,7 @@ def write_image_strips(
                 tile=(TIFF_TILE, TIFF_TILE),
                 compression="zlib",
                 compressionargs={"level": 1},
+                maxworkers=min(os.cpu_count() or 1, 4),  # tiles deflated in threads
             )
         commit(fd, tmp, path)
     except OSError as exc:

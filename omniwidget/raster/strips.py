@@ -8,14 +8,18 @@ resampling's coordinates, the map the quality figures measure through): 24 GB fo
 output :data:`STRIP_ROWS` rows at a time: each strip's source coordinates are those of the
 map grid interpolated bilinearly on the sphere (as unit vectors, so across the ±180° seam
 and over the poles alike; a single map is evaluated exactly instead), resampled by
-:func:`~omniwidget.raster.warping.remap_panorama`. Memory is the input, the map grid and
-one strip; the strips go to a writer as they are made
+:func:`~omniwidget.raster.warping.remap_panorama`. Memory is the input (or, for a
+panorama on disk, a copy reduced for the map grid and one patch at a time), the map grid
+and a strip a core (made ahead in threads); the strips go to a writer as they are made
 (:func:`omniwidget.io.images.write_image_strips`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import os
+from collections import deque
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,7 +28,7 @@ from numpy.typing import NDArray
 from ..document.handles import Handles
 from ..sphere import coords
 from .pipeline import Result, warp
-from .warping import Order, check_warp_arguments, coordinates_lonlat, pad_panorama, remap_panorama, source_pixels
+from .warping import Order, PanoramaSource, check_warp_arguments, coordinates_lonlat, pad_panorama, remap_panorama, source_pixels
 
 __all__ = ["MAP_WIDTH", "STREAM_WIDTH", "STRIP_ROWS", "Strips", "warp_in_strips"]
 
@@ -57,7 +61,7 @@ class Strips:
     shape: tuple[int, ...]
     dtype: np.dtype
     rows: int
-    _image: NDArray = field(repr=False)
+    _image: NDArray | PanoramaSource = field(repr=False)
     _order: Order = "bilinear"
     _vectors: NDArray[np.float32] | None = field(default=None, repr=False)
 
@@ -75,14 +79,33 @@ class Strips:
         return source_pixels(np.asarray(src_lon), np.asarray(src_lat), src_width)
 
     def image_strips(self) -> Iterator[NDArray]:
-        """The output's strips top to bottom, each ``(rows, width[, C])``, made as they are taken."""
-        for band in self._bands():
-            yield remap_panorama(self._image, self.coordinates(band), self._order)
+        """The output's strips top to bottom, each ``(rows, width[, C])``, made ahead of the taker by a strip a core."""
+        return _ahead(lambda band: remap_panorama(self._image, self.coordinates(band), self._order), self._bands())
 
     def map_strips(self) -> Iterator[NDArray[np.float32]]:
         """The inverse map that placed them, ``[lon, lat]`` degrees float32 ``(rows, width, 2)``, strip by strip."""
-        for band in self._bands():
-            yield coordinates_lonlat(self.coordinates(band), self._image.shape[1], np.float32)
+        return _ahead(lambda band: coordinates_lonlat(self.coordinates(band), self._image.shape[1], np.float32), self._bands())
+
+
+def _ahead(make: Callable[[slice], NDArray], bands: Iterator[slice]) -> Iterator[NDArray]:
+    """``make(band)`` for each band, in order, computed in threads up to one band a core ahead of the taker.
+
+    The strips' numpy and OpenCV work releases the GIL, so the next strips are made while
+    the taker encodes or writes this one; memory holds at most a strip a core more.
+    """
+    ahead = max(1, min(os.cpu_count() or 1, 4))
+    with ThreadPoolExecutor(ahead) as pool:
+        pending: deque[Future[NDArray]] = deque()
+        try:
+            for band in bands:
+                pending.append(pool.submit(make, band))
+                if len(pending) > ahead:
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
+        finally:
+            for future in pending:
+                future.cancel()
 
 
 def _grid_vectors(grid: NDArray[np.float32], src_width: int) -> NDArray[np.float32]:
@@ -113,7 +136,7 @@ def _interpolated(vectors: NDArray[np.float32], w: int, src_width: int, width: i
 
 
 def warp_in_strips(
-    image: NDArray,
+    image: NDArray | PanoramaSource,
     handles: Handles,
     *,
     width: int | None = None,
@@ -121,13 +144,15 @@ def warp_in_strips(
     map_width: int = MAP_WIDTH,
     rows: int = STRIP_ROWS,
     warn: bool = True,
+    map_image: NDArray | None = None,
 ) -> Strips:
     """Warp a panorama by handles, the output made in strips (see the module).
 
     Parameters
     ----------
-    image : ndarray, shape (H, W[, C])
-        Equirectangular, ``W = 2 H``.
+    image : ndarray, shape (H, W[, C]), or PanoramaSource
+        Equirectangular, ``W = 2 H``; one on disk (:class:`omniwidget.io.large.DiskPanorama`)
+        is read a patch at a time.
     handles : Handles
     width : int, optional
         Output width (even); default: the input's.
@@ -144,18 +169,27 @@ def warp_in_strips(
         Output rows per strip.
     warn : bool
         As for :func:`~omniwidget.raster.pipeline.warp`.
+    map_image : ndarray, optional
+        The same panorama reduced (at least ``map_width`` wide, any size), for the method's
+        run on the map grid; needed when ``image`` is not an array. Default: ``image``.
 
     Returns
     -------
     Strips
     """
-    width = check_warp_arguments(image, width, order)
+    if map_image is None:
+        if not isinstance(image, np.ndarray):
+            raise ValueError("a panorama not held in memory needs map_image, a reduced copy to run the method on")
+        map_image = image
+    width = check_warp_arguments(map_image, image.shape[1] if width is None else width, order)
+    if image.shape[1] != 2 * image.shape[0] or image.shape[2:] != map_image.shape[2:] or image.dtype != map_image.dtype:
+        raise ValueError(f"map_image {map_image.shape} {map_image.dtype} is not a reduced copy of the {image.shape} {image.dtype} panorama")
     map_width = min(int(map_width), width)
     if map_width < 2 or map_width % 2:
         raise ValueError(f"map_width must be an even number of at least 2, got {map_width}")
     if int(rows) < 1:
         raise ValueError(f"rows must be at least 1, got {rows}")
     rows = int(rows)
-    result = warp(image, handles, width=map_width, order=order, warn=warn)
-    vectors = None if result.coordinates is None else _grid_vectors(result.coordinates, image.shape[1])
+    result = warp(map_image, handles, width=map_width, order=order, warn=warn)
+    vectors = None if result.coordinates is None else _grid_vectors(result.coordinates, map_image.shape[1])
     return Strips(result, (width // 2, width, *image.shape[2:]), image.dtype, rows, image, order, vectors)

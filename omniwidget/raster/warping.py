@@ -15,7 +15,7 @@ import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,6 +28,7 @@ from ..sphere.moebius import Moebius
 __all__ = [
     "ORDERS",
     "REMAP_LIMIT",
+    "PanoramaSource",
     "WarpResult",
     "check_warp_arguments",
     "coordinates_lonlat",
@@ -259,6 +260,26 @@ _MARGIN = 3
 _Patch = Callable[[int, int, int, int], NDArray]
 
 
+@runtime_checkable
+class PanoramaSource(Protocol):
+    """A panorama not held in memory (one on disk: :class:`omniwidget.io.large.DiskPanorama`), read a patch at a time."""
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """``(H, W)`` or ``(H, W, C)``."""
+
+    @property
+    def dtype(self) -> np.dtype:
+        """The samples' type."""
+
+    @property
+    def ndim(self) -> int:
+        """2 or 3."""
+
+    def take(self, rows: NDArray[np.int64], cols: NDArray[np.int64]) -> NDArray:
+        """``image[np.ix_(rows, cols)]``: rows ``(n,)``, columns ``(m,)`` in runs of consecutive ones; ``(n, m[, C])``."""
+
+
 def _interpolation(order: str) -> int:
     import cv2
 
@@ -288,14 +309,14 @@ def remap(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bili
     ndarray, shape (h, w[, C]), the image's dtype
     """
     interpolation = _interpolation(order)
-    if image.ndim == 3 and image.shape[2] == 2:  # OpenCV samples two channels on a coarser grid (1/32 pixel): one at a time
-        return np.dstack([remap(np.ascontiguousarray(image[..., k]), coordinates, order, tile=tile) for k in range(2)])
     if tile is None and max(image.shape[:2]) < REMAP_LIMIT and max(coordinates.shape[:2]) < REMAP_LIMIT:
         return _cv_remap(image, coordinates, interpolation)
     return _remap_tiles(lambda y0, y1, x0, x1: image[y0:y1, x0:x1], image.shape, coordinates, interpolation, tile)
 
 
-def remap_panorama(image: NDArray, coordinates: NDArray[np.float32], order: Order = "bilinear", *, tile: int | None = None) -> NDArray:
+def remap_panorama(
+    image: NDArray | PanoramaSource, coordinates: NDArray[np.float32], order: Order = "bilinear", *, tile: int | None = None
+) -> NDArray:
     """Sample a panorama at float32 pixel coordinates of its padded frame: :func:`remap` of :func:`pad_panorama`.
 
     Below :data:`REMAP_LIMIT` pixels a side (source and output) it is exactly that: the
@@ -310,8 +331,9 @@ def remap_panorama(image: NDArray, coordinates: NDArray[np.float32], order: Orde
 
     Parameters
     ----------
-    image : ndarray, shape (H, W[, C])
-        The panorama, ``W = 2 H``.
+    image : ndarray, shape (H, W[, C]), or PanoramaSource
+        The panorama, ``W = 2 H``; a :class:`PanoramaSource` (one on disk) is always
+        resampled in tiles, each reading only its patch.
     coordinates : ndarray of float32, shape (h, w, 2)
         ``(x, y) + PAD``: pixel coordinates in the padded panorama, as
         :func:`remap_coordinates` gives them.
@@ -329,34 +351,47 @@ def remap_panorama(image: NDArray, coordinates: NDArray[np.float32], order: Orde
     h, w = image.shape[:2]
     if w % 2 or h < 1:
         raise ImageError(f"cannot resample a {w} x {h} panorama: its width must be even and its height at least 1")
-    if image.ndim == 3 and image.shape[2] == 2:
-        return np.dstack([remap_panorama(np.ascontiguousarray(image[..., k]), coordinates, order, tile=tile) for k in range(2)])
-    if tile is None and max(h, w) + 2 * PAD < REMAP_LIMIT and max(coordinates.shape[:2]) < REMAP_LIMIT:
+    if isinstance(image, np.ndarray) and tile is None and max(h, w) + 2 * PAD < REMAP_LIMIT and max(coordinates.shape[:2]) < REMAP_LIMIT:
         return _cv_remap(pad_panorama(image), coordinates, interpolation)
     shape = (h + 2 * PAD, w + 2 * PAD, *image.shape[2:])
     return _remap_tiles(lambda y0, y1, x0, x1: _padded_patch(image, y0, y1, x0, x1), shape, coordinates, interpolation, tile)
 
 
-def _padded_patch(image: NDArray, y0: int, y1: int, x0: int, x1: int) -> NDArray:
+def _padded_patch(image: NDArray | PanoramaSource, y0: int, y1: int, x0: int, x1: int) -> NDArray:
     """Rows ``y0:y1`` and columns ``x0:x1`` of ``pad_panorama(image)``, from ``image`` alone: a view inside it, else a copy."""
     h, w = image.shape[:2]
+    if not isinstance(image, np.ndarray):
+        return _padded_take(image.take, h, w, y0, y1, x0, x1)
     if PAD <= y0 and y1 <= h + PAD and PAD <= x0 and x1 <= w + PAD:
         return image[y0 - PAD : y1 - PAD, x0 - PAD : x1 - PAD]
+    return _padded_take(lambda rows, cols: image[np.ix_(rows, cols)], h, w, y0, y1, x0, x1)
+
+
+def _padded_take(take: Callable[[NDArray[np.int64], NDArray[np.int64]], NDArray], h: int, w: int, y0: int, y1: int, x0: int, x1: int) -> NDArray:
+    """:func:`_padded_patch` of a panorama read by ``take(rows, cols)`` (``image[np.ix_(rows, cols)]``)."""
     r = (np.arange(y0, y1) - PAD) % (2 * h)
     over = r >= h  # rows past a pole: the row on the other side, half a turn away
     rows = np.where(over, 2 * h - 1 - r, r)
     cols = np.arange(x0, x1) - PAD
-    patch = np.empty((y1 - y0, x1 - x0, *image.shape[2:]), image.dtype)
+    parts = []
     for turned in (False, True):
         chosen = over == turned
         if chosen.any():
-            patch[chosen] = image[np.ix_(rows[chosen], (cols + (w // 2 if turned else 0)) % w)]
+            parts.append((chosen, take(rows[chosen], (cols + (w // 2 if turned else 0)) % w)))
+    if len(parts) == 1:
+        return parts[0][1]
+    patch = np.empty((y1 - y0, *parts[0][1].shape[1:]), parts[0][1].dtype)
+    for chosen, pixels in parts:
+        patch[chosen] = pixels
     return patch
 
 
 def _cv_remap(image: NDArray, coordinates: NDArray[np.float32], interpolation: int) -> NDArray:
     """One call of OpenCV's remap (both sides under :data:`REMAP_LIMIT`), the channel axis kept."""
     import cv2
+
+    if image.ndim == 3 and image.shape[2] == 2:  # OpenCV samples two channels on a coarser grid (1/32 pixel): one at a time
+        return np.dstack([_cv_remap(np.ascontiguousarray(image[..., k]), coordinates, interpolation) for k in range(2)])
 
     # None is OpenCV's documented empty map2 (one (x, y) map); OpenCV 4's stub wants an array there, 5's does not
     remap_fn: Any = cv2.remap
