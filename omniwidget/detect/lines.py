@@ -713,8 +713,6 @@ def _cross(u: FloatArray, v: FloatArray) -> FloatArray:
 _TREE_MARGIN = math.radians(1.0)
 #: Side of the grid's cubes (:class:`_EndTree`), in the unit vectors' coordinates: about 6 degrees.
 _GRID_CELL = 0.1
-#: Relative loosening of :func:`pair_bands`'s first tests, all pairs at once, against rounding.
-_LOOSE = 1e-9
 
 
 class _EndTree:
@@ -739,6 +737,8 @@ class _EndTree:
         order = np.argsort(key, kind="stable")
         self.keys = key[order]
         self.points = every[order]
+        # the coordinates apart, each contiguous: gathering from them is several times faster than rows of ``points``
+        self.xs, self.ys, self.zs = (np.ascontiguousarray(self.points[:, axis]) for axis in range(3))
         self.owner = (order % self.k).astype(np.intp)
         bounds = np.searchsorted(self.keys, np.arange(self.m**3 + 1))
         self.starts = bounds[:-1].reshape(self.m, self.m, self.m)  # where each cube's points begin in the sorted order
@@ -784,10 +784,13 @@ class _EndTree:
         count = np.searchsorted(self.keys, base + hi[which, 2], "right") - starts
         which = np.repeat(which, count)
         found = np.repeat(starts - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
-        near = np.einsum("ij,ij->i", self.points[found], points[which]) >= 1.0 - 0.5 * chord[which] ** 2
-        if circles is not None:
+        # the dot products as einsum("ij,ij->i") sums them, (x + z) + y: the same to the bit, on gathered coordinates
+        if circles is not None:  # the band first: it rules out most
+            c = circles[which]
+            near = np.abs((self.xs[found] * c[:, 0] + self.zs[found] * c[:, 2]) + self.ys[found] * c[:, 1]) < band
             found, which = found[near], which[near]
-            near = np.abs(np.einsum("ij,ij->i", self.points[found], circles[which])) < band
+        p = points[which]
+        near = (self.xs[found] * p[:, 0] + self.zs[found] * p[:, 2]) + self.ys[found] * p[:, 1] >= (1.0 - 0.5 * chord**2)[which]
         return which[near], self.owner[found[near]]
 
     def pairs(self, *balls: tuple[FloatArray, FloatArray]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
@@ -828,7 +831,9 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
     of the shorter become one arc along the bisecting great circle, over the union of
     their extents. Arcs without such a partner are kept as they are. Only arcs with an end
     near an arc can be its partner: the tests run on the pairs a grid of the endpoints
-    (:class:`_EndTree`) finds, all at once, then on the few left, longest first, as if on every arc.
+    (:class:`_EndTree`) finds, all at once; then, longest first, each arc not yet paired takes
+    the first of its partners with the largest overlap among those not yet taken, as if the
+    tests had run on every arc in turn.
 
     Parameters
     ----------
@@ -859,41 +864,50 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
     span, d_r = np.radians(length), math.radians(distance)
     i_of, j_of = _EndTree(a, b).pairs((mid, span / 2 + d_r), (-a, span + d_r))
     dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731 - rowwise dot products
-    loose = sin_d * (1 + _LOOSE) + 1e-12
+    # the loop's own tests, every pair at once: j of the other polarity, its points within ``distance`` of i's
+    # circle and i's ends of j's, and their overlap along i's circle as a share of the shorter
     n_i, n_j = normal[i_of], normal[j_of]
-    ok = dot(n_j, n_i) < 1e-12
+    ok = dot(n_j, n_i) < 0
     for points, circles in ((a[j_of], n_i), (b[j_of], n_i), (mid[j_of], n_i), (a[i_of], n_j), (b[i_of], n_j)):
-        ok &= np.abs(dot(points, circles)) < loose
+        ok &= np.abs(dot(points, circles)) < sin_d
     i_of, j_of = i_of[ok], j_of[ok]
-    bounds = np.searchsorted(i_of, np.arange(k + 1))
-    ends = np.stack([a, b, mid], axis=1)  # (k, 3, 3): the points of each arc tested against a circle
-    taken = np.zeros(k, dtype=bool)
-    out: list[Arc] = []
-    for i in np.argsort(-length).tolist():
-        if taken[i]:
+    a_i, a_j, b_j = a[i_of], a[j_of], b[j_of]
+    other = np.cross(normal[i_of], a_i)
+    ta = np.arctan2(dot(a_j, other), dot(a_j, a_i))
+    tb = np.arctan2(dot(b_j, other), dot(b_j, a_i))
+    shared = np.minimum(np.maximum(ta, tb), np.radians(length[i_of])) - np.maximum(np.minimum(ta, tb), 0.0)
+    share = shared / np.radians(np.minimum(length[i_of], length[j_of]))
+    order = np.argsort(-length)
+    rank = np.empty(k, dtype=np.intp)
+    rank[order] = np.arange(k)
+    # a partner is one the loop still has free when it comes to i: after i in its order (and not paired since)
+    keep = (share >= overlap) & (share > 0.0) & (rank[j_of] > rank[i_of])
+    i_of, j_of, share = i_of[keep], j_of[keep], share[keep]
+    # the greedy choice, longest first: each arc's best free partner (the first of the largest share), in turn
+    partner = np.full(k, -1, dtype=np.intp)
+    paired = np.zeros(k, dtype=bool)  # taken as another's partner
+    heads = np.unique(i_of)
+    bounds = np.searchsorted(i_of, heads).tolist() + [len(i_of)]
+    js, shares = j_of.tolist(), share.tolist()
+    for n in np.argsort(rank[heads], kind="stable").tolist():
+        i = int(heads[n])
+        if paired[i]:
             continue
-        taken[i] = True
-        cand = j_of[bounds[i] : bounds[i + 1]]
-        cand = cand[~taken[cand]]
-        if cand.size:
-            cand = cand[normal.take(cand, axis=0) @ normal[i] < 0]
-            near = np.abs(ends.take(cand, axis=0).reshape(-1, 3) @ normal[i]).reshape(-1, 3).max(axis=1) < sin_d
-            near &= np.abs(normal.take(cand, axis=0) @ ends[i, :2].T).max(axis=1) < sin_d
-            cand = cand[near]
-        best, best_overlap = -1, 0.0
-        if cand.size:
-            other = _cross(normal[i], a[i])
-        for j in cand.tolist():
-            ta = math.atan2(float(a[j] @ other), float(a[j] @ a[i]))
-            tb = math.atan2(float(b[j] @ other), float(b[j] @ a[i]))
-            shared = min(max(ta, tb), math.radians(length[i])) - max(min(ta, tb), 0.0)
-            share = shared / math.radians(min(length[i], length[j]))
-            if share >= overlap and share > best_overlap:
-                best, best_overlap = int(j), share
+        best, best_share = -1, 0.0
+        for m in range(bounds[n], bounds[n + 1]):
+            if shares[m] > best_share and not paired[js[m]]:
+                best, best_share = js[m], shares[m]
+        if best >= 0:
+            paired[best] = True
+            partner[i] = best
+    out: list[Arc] = []
+    for i in order.tolist():
+        if paired[i]:
+            continue
+        best = int(partner[i])
         if best < 0:
             out.append(arcs[i])
             continue
-        taken[best] = True
         bisector = _unit(normal[i] - normal[best])
         origin = _unit(a[i] - (a[i] @ bisector) * bisector)
         pair = np.array([i, best])
