@@ -397,7 +397,7 @@ def test_view_maps_are_the_rays_lonlat_and_pixels():
     """The maps written out on planes are those of View.rays, xyz_to_lonlat and lonlat_to_px, to the bit."""
     from omniwidget.sphere import coords
 
-    for width in (512, 2048):
+    for width in (64, 512, 1000, 1024, 2048, 2050):
         for view in lines.cube_views(width):
             grid = np.mgrid[0 : view.size, 0 : view.size][::-1].transpose(1, 2, 0)
             px = coords.lonlat_to_px(coords.xyz_to_lonlat(view.rays(grid)), width)

@@ -207,6 +207,7 @@ def test_the_editor_saves_a_panorama_too_large_to_warp_whole_in_strips_with_its_
     (tmp_path / "h.json").write_text(doc.to_json())
     monkeypatch.setattr(strips, "STREAM_WIDTH", 512)
     monkeypatch.setattr(strips, "MAP_WIDTH", 512)
+    monkeypatch.setattr(strips, "STRIP_PIXELS", 100 * 1024)  # strips of 100 rows
     monkeypatch.setenv(large.STREAM_VARIABLE, "1")
     expected = _cli(tmp_path, "p.png", "cli.png")  # the command line's warp in strips from disk
     session = EditingSession(tmp_path / "p.png", doc, autosave=False, quality=False)
@@ -221,8 +222,8 @@ def test_the_editor_saves_a_panorama_too_large_to_warp_whole_in_strips_with_its_
     assert opened, "the panorama was not read from disk"
     assert np.array_equal(read_image(saved), expected)
     rows = [fields["saving"]["done"] for fields in said if fields.get("saving")]
-    assert rows == list(range(0, 513, strips.STRIP_ROWS)), rows  # before the first strip, then after each
-    assert any("saving saved.png: 50% of 512 rows" in fields.get("message", "") for fields in said)
+    assert rows == [0, *range(strips.strip_rows(1024), 512, strips.strip_rows(1024)), 512], rows  # before the first strip, then after each
+    assert [f["message"] for f in said if f.get("saving") and f["saving"]["done"] == 300] == ["saving saved.png: 58% of 512 rows"]
     assert session.status["message"] == f"1024 x 512 saved to {saved}" and session.status.get("saving") is None
     with pytest.raises(ow.ImageError, match="is the input panorama"):
         session.save_image(tmp_path / "p.png")

@@ -702,15 +702,15 @@ def _needed(header: ImageHeader, *, warp: bool, width: int | None, plan: ReadPla
             source = WARP_INPUT_COPIES * image
         else:  # resampled in tiles (remap_panorama): no padded copy, one patch at a time
             source = image + PATCH_PIXELS * header.bytes_per_pixel
-    from ..raster.strips import MAP_WIDTH, STREAM_WIDTH, STRIP_ROWS
+    from ..raster.strips import MAP_WIDTH, STREAM_WIDTH, STRIPS_AHEAD, strip_rows
 
     w, pixels = _warp_output(header, width)
     if not streamed and w <= STREAM_WIDTH:
         return max(reading, source + pixels * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel))
     # made in strips (omniwidget.raster.strips): the warp on the map grid, its unit vectors (12 bytes, twice while
-    # padded), a strip's interpolation, and the output gathered whole where its format is not written in strips
+    # padded), and the strips in hand (their interpolation)
     grid = MAP_WIDTH * (MAP_WIDTH // 2)
-    strip = STRIP_ROWS * w * STRIP_BYTES_PER_PIXEL
+    strip = (STRIPS_AHEAD + 1) * strip_rows(w) * w * STRIP_BYTES_PER_PIXEL  # the strip written and those made ahead
     return max(reading, source + grid * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel + 24) + strip)
 
 

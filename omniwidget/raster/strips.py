@@ -5,18 +5,17 @@ resampling's coordinates, the map the quality figures measure through): 24 GB fo
 34,000 px wide output. :func:`warp_in_strips` instead runs the method once on a map grid
 :data:`MAP_WIDTH` wide (its mesh, weights, untangling, quality figures and warnings: the
 :class:`~omniwidget.raster.pipeline.Result` that stands for the warp) and then makes the
-output :data:`STRIP_ROWS` rows at a time: each strip's source coordinates are those of the
+output a strip of about :data:`STRIP_PIXELS` pixels at a time (:func:`strip_rows`): each strip's source coordinates are those of the
 map grid interpolated bilinearly on the sphere (as unit vectors, so across the ±180° seam
 and over the poles alike; a single map is evaluated exactly instead), resampled by
 :func:`~omniwidget.raster.warping.remap_panorama`. Memory is the input (or, for a
 panorama on disk, a copy reduced for the map grid and one patch at a time), the map grid
-and a strip a core (made ahead in threads); the strips go to a writer as they are made
+and :data:`STRIPS_AHEAD` + 1 strips (made ahead in threads); the strips go to a writer as they are made
 (:func:`omniwidget.io.images.write_image_strips`).
 """
 
 from __future__ import annotations
 
-import os
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -30,14 +29,21 @@ from ..sphere import coords
 from .pipeline import Result, warp
 from .warping import Order, PanoramaSource, check_warp_arguments, coordinates_lonlat, pad_panorama, remap_panorama, source_pixels
 
-__all__ = ["MAP_WIDTH", "STREAM_WIDTH", "STRIP_ROWS", "Strips", "warp_in_strips"]
+__all__ = ["MAP_WIDTH", "STREAM_WIDTH", "STRIPS_AHEAD", "STRIP_PIXELS", "Strips", "strip_rows", "warp_in_strips"]
 
 #: The command line makes outputs wider than this in strips (:func:`warp_in_strips`).
 STREAM_WIDTH = 16384
 #: Width of the grid the method's map is computed on for a warp in strips.
 MAP_WIDTH = 8192
-#: Output rows a strip holds.
-STRIP_ROWS = 256
+#: Output pixels a strip holds, about (its rows: :func:`strip_rows`): 64 rows of a 16,384 px output, 16 of a 64,000 px one.
+STRIP_PIXELS = 1 << 20
+#: Strips made ahead of the writer, in threads, besides the one it takes (:meth:`Strips.image_strips`).
+STRIPS_AHEAD = 2
+
+
+def strip_rows(width: int) -> int:
+    """Rows of the strips of an output ``width`` wide: :data:`STRIP_PIXELS` pixels' worth, at least 8."""
+    return max(8, STRIP_PIXELS // max(int(width), 1))
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,7 +85,7 @@ class Strips:
         return source_pixels(np.asarray(src_lon), np.asarray(src_lat), src_width)
 
     def image_strips(self) -> Iterator[NDArray]:
-        """The output's strips top to bottom, each ``(rows, width[, C])``, made ahead of the taker by a strip a core."""
+        """The output's strips top to bottom, each ``(rows, width[, C])``, made ahead of the taker (:data:`STRIPS_AHEAD`)."""
         return _ahead(lambda band: remap_panorama(self._image, self.coordinates(band), self._order), self._bands())
 
     def map_strips(self) -> Iterator[NDArray[np.float32]]:
@@ -88,12 +94,12 @@ class Strips:
 
 
 def _ahead(make: Callable[[slice], NDArray], bands: Iterator[slice]) -> Iterator[NDArray]:
-    """``make(band)`` for each band, in order, computed in threads up to one band a core ahead of the taker.
+    """``make(band)`` for each band, in order, computed in threads up to :data:`STRIPS_AHEAD` bands ahead of the taker.
 
     The strips' numpy and OpenCV work releases the GIL, so the next strips are made while
     the taker encodes or writes this one; memory holds at most a strip a core more.
     """
-    ahead = max(1, min(os.cpu_count() or 1, 4))
+    ahead = STRIPS_AHEAD
     with ThreadPoolExecutor(ahead) as pool:
         pending: deque[Future[NDArray]] = deque()
         try:
@@ -142,7 +148,7 @@ def warp_in_strips(
     width: int | None = None,
     order: Order = "bilinear",
     map_width: int = MAP_WIDTH,
-    rows: int = STRIP_ROWS,
+    rows: int | None = None,
     warn: bool = True,
     map_image: NDArray | None = None,
 ) -> Strips:
@@ -165,8 +171,8 @@ def warp_in_strips(
         near handles), half of it within 0.16 and 0.75 px (tests/test_any_size.py). Where the
         method untangled or gave way, it did so on this grid: at another width it may give
         way otherwise (both one-to-one).
-    rows : int
-        Output rows per strip.
+    rows : int, optional
+        Output rows per strip; default :func:`strip_rows` of the width.
     warn : bool
         As for :func:`~omniwidget.raster.pipeline.warp`.
     map_image : ndarray, optional
@@ -187,9 +193,9 @@ def warp_in_strips(
     map_width = min(int(map_width), width)
     if map_width < 2 or map_width % 2:
         raise ValueError(f"map_width must be an even number of at least 2, got {map_width}")
-    if int(rows) < 1:
+    rows = strip_rows(width) if rows is None else int(rows)
+    if rows < 1:
         raise ValueError(f"rows must be at least 1, got {rows}")
-    rows = int(rows)
     result = warp(map_image, handles, width=map_width, order=order, warn=warn)
     vectors = None if result.coordinates is None else _grid_vectors(result.coordinates, map_image.shape[1])
     return Strips(result, (width // 2, width, *image.shape[2:]), image.dtype, rows, image, order, vectors)
