@@ -29,7 +29,7 @@ from .._checks import SUPPORTED_DTYPES, check_image, check_panorama, require_reg
 from .._files import atomic_write_bytes, commit, remove_leftovers, temporary_file
 from ..errors import ImageError, NotRegularFileError
 from . import large
-from .large import REDUCE_ROWS, ReadPlan, asked_reduction, plan_read, read_reduced
+from .large import REDUCE_ROWS, ReadPlan, plan_read, read_reduced
 
 __all__ = [
     "FITS",
@@ -39,7 +39,6 @@ __all__ = [
     "WARP_BYTES_PER_PIXEL",
     "WARP_INPUT_COPIES",
     "ImageHeader",
-    "asked_reduction",
     "atomic_write_bytes",
     "available_memory",
     "check_fits",
@@ -865,7 +864,7 @@ def check_fits(path: str | os.PathLike[str], *, warp: bool = False, width: int |
         Count a warp of it too (:func:`memory_needed`).
     width : int, optional
         The warp's output width; default: the panorama's own. A JPEG is counted at the
-        size it will be decoded at (:func:`asked_reduction`).
+        size it will be decoded at (:func:`~omniwidget.io.large.asked_reduction`).
     streamed : bool
         As for :func:`memory_needed`.
 
@@ -906,7 +905,7 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width:
     width : int, optional
         The width the image is wanted at (a warp's output width, say). A JPEG at least
         twice as wide is decoded at 1/2, 1/4 or 1/8 of its size (libjpeg's DCT scaling, the
-        most that keeps it at least ``width`` wide: :func:`asked_reduction`): read at the
+        most that keeps it at least ``width`` wide: :func:`~omniwidget.io.large.asked_reduction`): read at the
         size asked, in less memory and time, and averaged rather than aliased. Other
         formats are decoded whole.
 
