@@ -906,8 +906,11 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width:
         The width the image is wanted at (a warp's output width, say). A JPEG at least
         twice as wide is decoded at 1/2, 1/4 or 1/8 of its size (libjpeg's DCT scaling, the
         most that keeps it at least ``width`` wide: :func:`~omniwidget.io.large.asked_reduction`): read at the
-        size asked, in less memory and time, and averaged rather than aliased. Other
-        formats are decoded whole.
+        size asked, in less memory and time, and averaged rather than aliased. Another
+        format larger than :data:`~omniwidget.io.large.STREAM_BYTES` decoded is reduced by
+        the largest whole factor that keeps it ``width`` wide, an exact box average made
+        strip by strip (:func:`~omniwidget.io.large.read_reduced`); the others are decoded
+        whole.
 
     Returns
     -------
