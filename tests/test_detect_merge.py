@@ -425,6 +425,52 @@ def test_grid_finds_every_point_within_the_angle():
         assert got <= set((np.flatnonzero(close) % 1500).tolist())  # and no arc without a point in the ball
 
 
+def test_grid_finds_every_point_near_a_circle():
+    """A query with circles keeps exactly the points within the angle that lie within the band: the cubes it skips hold none."""
+    rng = np.random.default_rng(4)
+    centres = _unit(rng.normal(size=(300, 3)))
+    circles = _unit(np.cross(centres, rng.normal(size=(300, 3))))  # circles through the centres
+    # points strewn at random, at a pole, and along the edges of the first band, just inside (|p . c| = 0.99999 band)
+    t = np.linspace(-0.5, 0.5, 3000)[:, None]
+    along = np.cos(t) * centres[200] + np.sin(t) * np.cross(circles[200], centres[200])
+    edge = math.sin(math.radians(MERGE_DISTANCE)) * 0.99999
+    edges = [_unit(along + side * math.tan(math.asin(edge)) * circles[200]) for side in (-1.0, 1.0)]
+    points = np.concatenate([_unit(rng.normal(size=(4000, 3))), *edges])
+    points[:50] = _unit(np.array([[0.0, 0.0, 1.0]]) + 1e-3 * rng.normal(size=(50, 3)))  # at a pole
+    grid = lines._EndTree(points)
+    circles[:40, 2] = 0.0  # normals flat in z: the columns' whole height
+    circles[40:60, 2] = rng.choice([1e-7, -1e-7, 2e-6, -2e-6], 20)
+    circles[:60] = _unit(circles[:60])
+    circles[60:80] = rng.choice([-1.0, 1.0], (20, 1)) * np.array([0.0, 0.0, 1.0])  # the equator and the like
+    angles = rng.choice([0.02, 0.1, 0.4, 1.5, 3.2], len(centres))
+    for band in (math.sin(math.radians(MERGE_DISTANCE)), 0.1):
+        which, owner = grid.query(centres, angles, circles, band)
+        plain_which, plain_owner = grid.query(centres, angles)
+        # the same as the ball's points filtered by the band afterwards, in the same order
+        kept = np.abs(np.einsum("ij,ij->i", points[plain_owner], circles[plain_which])) < band
+        assert np.array_equal(which, plain_which[kept])
+        assert np.array_equal(owner, plain_owner[kept])
+        assert len(which) > 100
+    # the sharpest case: a point at a corner of its column's square, just inside the band of a circle through it
+    corner = rng.integers(1, 19, size=(400, 2)) * lines._GRID_CELL - 1.0
+    corner = corner[np.hypot(corner[:, 0], corner[:, 1]) < 0.99]
+    at = np.column_stack([corner, rng.choice([-1.0, 1.0], len(corner)) * np.sqrt(1.0 - (corner**2).sum(axis=1))])
+    # and at corners of cubes, all three coordinates on the grid's planes, each with many circles
+    cubes = [np.roll([sx * 0.6, sy * 0.8, 0.0], r) for sx in (-1, 1) for sy in (-1, 1) for r in range(3)]
+    cubes += [np.roll([sx * 1.0, 0.0, 0.0], r) for sx in (-1, 1) for r in range(3)]
+    at = np.concatenate([at, np.repeat(np.array(cubes), 40, axis=0)])
+    inside = math.sin(math.radians(MERGE_DISTANCE)) * (1.0 - 1e-7)
+    across = _unit(np.cross(at, rng.normal(size=at.shape)))
+    tilted = across * math.sqrt(1.0 - inside**2) + at * inside  # |at . tilted| = inside
+    tilted[: len(tilted) // 4, 2] = 0.0  # some flat in z (then no longer just inside: kept or not, as the plain query says)
+    grid = lines._EndTree(at)
+    which, owner = grid.query(at, 0.01, tilted, math.sin(math.radians(MERGE_DISTANCE)))
+    plain_which, plain_owner = grid.query(at, 0.01)
+    kept = np.abs(np.einsum("ij,ij->i", at[plain_owner], tilted[plain_which])) < math.sin(math.radians(MERGE_DISTANCE))
+    assert np.array_equal(which, plain_which[kept]) and np.array_equal(owner, plain_owner[kept])
+    assert np.count_nonzero(which == owner) > 200  # each finds itself
+
+
 def test_level_scores_are_the_dense_sums():
     """level's candidate scores, summed over the few arcs near each candidate, are those of the whole table, to the bit."""
     scene = synthetic_room(768, grid=1.0, noise=3.0, seed=2, pitch=6.0, roll=-3.0)

@@ -745,7 +745,8 @@ class _EndTree:
 
     The unit vectors are binned in cubes of side :data:`_GRID_CELL`, sorted so that each
     column of cubes along z is one run; a query looks in the columns that meet the box around
-    its ball and keeps the points inside the ball. numpy alone: no k-d tree to import.
+    its ball (near a great circle, in the cubes of each column that meet that circle's band:
+    :meth:`_slab`) and keeps the points inside the ball. numpy alone: no k-d tree to import.
 
     Parameters
     ----------
@@ -768,6 +769,7 @@ class _EndTree:
         bounds = np.searchsorted(self.keys, np.arange(self.m**3 + 1))
         self.starts = bounds[:-1].reshape(self.m, self.m, self.m)  # where each cube's points begin in the sorted order
         self.stops = bounds[1:].reshape(self.m, self.m, self.m)  # and end
+        self.first, self.last = bounds[:-1], bounds[1:]  # the same, by the flat index of a cube
 
     @staticmethod
     def _chord(angle: float) -> float:
@@ -796,17 +798,24 @@ class _EndTree:
         With ``circles`` (unit normals, one per point), only the points ``p`` with
         ``|p · circles[i]| < band`` as well: near that great circle.
         """
+        cell = _GRID_CELL
         chord = 2.0 * np.sin(np.minimum(np.broadcast_to(np.asarray(angles, dtype=np.float64), len(points)) + _TREE_MARGIN, math.pi) / 2) + 1e-12
-        lo = np.clip(np.floor((points - chord[:, None] + 1.0) / _GRID_CELL).astype(np.int64), 0, self.m - 1)
-        hi = np.clip(np.floor((points + chord[:, None] + 1.0) / _GRID_CELL).astype(np.int64), 0, self.m - 1)
+        lo = np.clip(np.floor((points - chord[:, None] + 1.0) / cell).astype(np.int64), 0, self.m - 1)
+        hi = np.clip(np.floor((points + chord[:, None] + 1.0) / cell).astype(np.int64), 0, self.m - 1)
         nx, ny = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
         columns = nx * ny
         which = np.repeat(np.arange(len(points), dtype=np.intp), columns)
         local = np.arange(int(columns.sum()), dtype=np.int64) - np.repeat(np.cumsum(columns) - columns, columns)
-        cx, cy = lo[which, 0] + local // ny[which], lo[which, 1] + local % ny[which]
+        across = ny[which]
+        cx, cy = lo[which, 0] + local // across, lo[which, 1] + local % across
+        z0, z1 = lo[which, 2], hi[which, 2]
+        if circles is not None:
+            z0, z1 = self._slab(circles, band, which, cx, cy, z0, z1)
+            keep = z0 <= z1
+            which, cx, cy, z0, z1 = which[keep], cx[keep], cy[keep], z0[keep], z1[keep]
         base = (cx * self.m + cy) * self.m
-        starts = np.searchsorted(self.keys, base + lo[which, 2], "left")
-        count = np.searchsorted(self.keys, base + hi[which, 2], "right") - starts
+        starts = self.first[base + z0]
+        count = self.last[base + z1] - starts
         which = np.repeat(which, count)
         found = np.repeat(starts - (np.cumsum(count) - count), count) + np.arange(int(count.sum()))
         # the dot products as einsum("ij,ij->i") sums them, (x + z) + y: the same to the bit, on gathered coordinates
@@ -817,6 +826,37 @@ class _EndTree:
         p = points[which]
         near = (self.xs[found] * p[:, 0] + self.zs[found] * p[:, 2]) + self.ys[found] * p[:, 1] >= (1.0 - 0.5 * chord**2)[which]
         return which[near], self.owner[found[near]]
+
+    @staticmethod
+    def _slab(
+        circles: FloatArray, band: float, which: NDArray[np.intp], cx: NDArray[np.int64], cy: NDArray[np.int64], z0: NDArray[np.int64], z1: NDArray[np.int64]
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """The cubes ``z0..z1`` of each column ``(cx, cy)`` narrowed to those that meet the slab ``|p · circles[which]| < band`` (loosened).
+
+        Over the column's square, ``s = x c_x + y c_y`` lies between two bounds, so a point of
+        the slab has ``z c_z`` between ``-band - max s`` and ``band - min s``. A ``c_z`` below
+        1e-6 in size is taken as 1e-6 (``|z| <= 1``: the slab widened by 1e-5 holds every
+        point of the true one), and the bounds are loosened by far more than their rounding.
+        """
+        cell = _GRID_CELL
+        c0, c1 = circles[:, 0], circles[:, 1]
+        c2 = np.where(np.abs(circles[:, 2]) < 1e-6, 1e-6, circles[:, 2])
+        wide = band + 1e-5
+        side = cell + 2e-9  # the column's square, a little wider than the cubes' side
+        spread_lo = np.minimum(0.0, side * c0) + np.minimum(0.0, side * c1)
+        spread_hi = np.maximum(0.0, side * c0) + np.maximum(0.0, side * c1)
+        offset = -(1.0 + 1e-9) * (c0 + c1)  # s at the square's corner (cx, cy) = (0, 0)
+        low = -wide - spread_hi - offset  # z c_z > low - s', s' = (cx c_x + cy c_y) cell
+        high = wide - spread_lo - offset  # z c_z < high - s'
+        up = c2 > 0
+        # the cube index of z, (z + 1) / cell, at either bound: a + s' * slope per column
+        first = (np.where(up, low, high) / c2 + 1.0) / cell - 1e-7
+        last = (np.where(up, high, low) / c2 + 1.0) / cell + 1e-7
+        slope = -1.0 / (c2 * cell)
+        moved = (cx * (cell * c0)[which] + cy * (cell * c1)[which]) * slope[which]
+        z_first = np.floor(np.clip(first[which] + moved, -5.0, 50.0)).astype(np.int64)
+        z_last = np.floor(np.clip(last[which] + moved, -5.0, 50.0)).astype(np.int64)
+        return np.maximum(z0, z_first), np.minimum(z1, z_last)
 
     def pairs(self, *balls: tuple[FloatArray, FloatArray]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
         """:meth:`query` of each ``(points, angles)`` given, together: sorted by ``i`` then ``j``, each pair once, no ``i == j``."""
