@@ -383,8 +383,8 @@ def _scores(
 
     The same sums as over the whole ``(k, m)`` table of votes: the normals' dot products are
     taken for all of it, the rest (the other dot products too) only where an arc's circle
-    passes within ``cap`` of the candidate (few do), and the sums add the voters in the arcs'
-    order.
+    passes within ``cap`` of the candidate and within :data:`INLIER_SIGMAS` of its own errors
+    (few do), and the sums add the voters in the arcs' order.
 
     Parameters
     ----------
@@ -401,16 +401,22 @@ def _scores(
     v = np.ascontiguousarray(v)  # einsum is several times slower on a transposed view
     # numpy's loop, not BLAS: BLAS in threads stalls on this thin product when the cores are busy
     dots = np.abs(np.einsum("ij,jk->ik", normals, v))
-    rows, cols = np.nonzero(dots < cap)  # a vote needs arcsin(x) < cap, so x < cap: these are all the voters and more
+    # a vote needs arcsin(x) < cap, so x < cap, and arcsin(x) < INLIER_SIGMAS sigma, so x below its sine (loosened
+    # against rounding): these are all the voters and more
+    reach = INLIER_SIGMAS * sigma
+    limit = np.where(reach < np.pi / 2, np.sin(np.minimum(reach, np.pi / 2)) * (1.0 + 1e-9) + 1e-15, np.inf)
+    rows, cols = np.nonzero(dots < np.minimum(limit, cap)[:, None])
     r = np.arcsin(np.clip(dots[rows, cols], 0.0, 1.0))
-    # the other products only where an arc is near: its start, tangent and end with the candidate
-    start, tangent, end = np.einsum("ijk,ik->ji", np.stack([ends_a, along, ends_b], axis=1)[rows], v.T[cols])
+    # the other products only where an arc is near: its start, tangent and end with the candidate, each summed
+    # as einsum("ijk,ik->ji") of the stacked ends does it, (x + z) + y, on coordinates gathered one at a time
+    vx, vy, vz = v[0][cols], v[1][cols], v[2][cols]
+    start, tangent, end = ((p[:, 0][rows] * vx + p[:, 2][rows] * vz) + p[:, 1][rows] * vy for p in (ends_a, along, ends_b))
     t = np.arctan2(tangent, start)  # the angle along each circle of the point nearest to v
     opposite = np.where(t > 0, t - np.pi, t + np.pi)  # and of the point nearest to -v
     span = spans[rows]
     passes = ((t > 0) & (t < span)) | ((opposite > 0) & (opposite < span))
     far = ~passes & (np.maximum(np.abs(start), np.abs(end)) < polar)
-    vote = (r < INLIER_SIGMAS * sigma[rows]) & (r < cap) & far
+    vote = (r < reach[rows]) & (r < cap) & far
     return np.asarray(np.bincount(cols[vote], weights=1.0 / sigma[rows[vote]], minlength=v.shape[1]), dtype=np.float64)
 
 
