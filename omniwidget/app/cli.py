@@ -368,6 +368,8 @@ def _in_strips(args: argparse.Namespace, source: Path) -> tuple[bool, Any]:
     from ..io.large import open_on_disk, plan_read
     from ..raster.strips import STREAM_WIDTH
 
+    if source.is_dir():
+        return False, None  # read_panorama says what is wrong with it
     header = image_header(source)
     if header is None:
         return False, None  # its size is known once it is decoded
