@@ -178,6 +178,7 @@ class DiskPanorama:
     shape : tuple of int
         ``(H, W)`` or ``(H, W, C)``.
     dtype : numpy.dtype
+        As stored (either byte order); :attr:`dtype` and the pixels read are in this machine's.
     temporary : bool
         Remove the file on :meth:`close` (a decoding made by :func:`open_on_disk`).
 
@@ -188,7 +189,8 @@ class DiskPanorama:
 
     def __init__(self, path: str | os.PathLike[str], offset: int, shape: tuple[int, ...], dtype: np.dtype | type, *, temporary: bool = False) -> None:
         self.path, self.offset = Path(path), int(offset)
-        self.shape, self.dtype = tuple(int(s) for s in shape), np.dtype(dtype)
+        self._stored = np.dtype(dtype)  # as in the file: its byte order may be another than this machine's
+        self.shape, self.dtype = tuple(int(s) for s in shape), self._stored.newbyteorder("=")
         self.temporary = temporary
         self._row_bytes = math.prod(self.shape[1:]) * self.dtype.itemsize
         self._pixel_bytes = self._row_bytes // max(self.shape[1], 1)
@@ -214,9 +216,9 @@ class DiskPanorama:
         if self._fd is None:
             raise ImageError(f"{self.path}: the panorama on disk was closed")
         rows, cols = np.asarray(rows, np.int64), np.asarray(cols, np.int64)
-        out = np.empty((len(rows), len(cols), *self.shape[2:]), self.dtype)
+        out = np.empty((len(rows), len(cols), *self.shape[2:]), self._stored)
         if not len(rows) or not len(cols):
-            return out
+            return out.astype(self.dtype, copy=False)
         if rows.min() < 0 or rows.max() >= self.shape[0] or cols.min() < 0 or cols.max() >= self.shape[1]:
             raise IndexError(f"pixels asked outside the {self.shape[1]} x {self.shape[0]} panorama")
         breaks = np.flatnonzero(np.diff(cols) != 1) + 1
@@ -231,7 +233,7 @@ class DiskPanorama:
                 got = os.preadv(self._fd, [flat[i, a * pb : b * pb].data], base + int(cols[a]) * pb)
                 if got != size:
                     raise ImageError(f"{self.path}: the file ends before row {row} of the panorama")
-        return out
+        return out.astype(self.dtype, copy=False)  # in this machine's byte order
 
     def rows(self, start: int, stop: int) -> NDArray:
         """Rows ``start:stop`` whole, ``(stop - start, W[, C])``."""
@@ -315,10 +317,10 @@ def open_on_disk(path: str | os.PathLike[str], header: ImageHeader) -> DiskPanor
             from numpy.lib import format as npy
 
             version = npy.read_magic(fh)
-            fortran = (npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0)(fh)[1]
+            _, fortran, stored = (npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0)(fh)
         if fortran or header.dtype.type not in SUPPORTED_DTYPES or len(header.shape) not in (2, 3):
             raise ImageError(f"{path}: a panorama read from disk must be a C-ordered (H, W[, C]) array of a supported type, not {header.describe()}")
-        return DiskPanorama(path, header.offset, header.shape, header.dtype)
+        return DiskPanorama(path, header.offset, header.shape, stored)
     image = _vips_image(path)
     dtype = np.dtype(_VIPS_DTYPES[image.format])
     shape = (image.height, image.width, image.bands) if image.bands > 1 else (image.height, image.width)
