@@ -863,11 +863,13 @@ class _EndTree:
         z_last = np.floor(np.clip(last[which] + moved, -5.0, 50.0)).astype(np.int64)
         return np.maximum(z0, z_first), np.minimum(z1, z_last)
 
-    def pairs(self, *balls: tuple[FloatArray, FloatArray]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-        """:meth:`query` of each ``(points, angles)`` given, together: sorted by ``i`` then ``j``, each pair once, no ``i == j``."""
+    def pairs(
+        self, *balls: tuple[FloatArray, FloatArray], circles: FloatArray | None = None, band: float = 0.0
+    ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """:meth:`query` of each ``(points, angles)`` given (with ``circles`` and ``band``), together: sorted by ``i`` then ``j``, each pair once, no ``i == j``."""
         keys = []
         for points, angles in balls:
-            i, j = self.query(points, angles)
+            i, j = self.query(points, angles, circles, band)
             keys.append(i.astype(np.int64) * self.k + j)
         key = np.sort(np.concatenate(keys))
         key = key[np.concatenate([[True], key[1:] != key[:-1]])]  # each pair once
@@ -932,7 +934,8 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
     # one across the far side of its circle (its ends' angles from ``a`` on either side of ±180°,
     # which the overlap takes as the whole turn) has both ends within its length and ``distance`` of ``-a``
     span, d_r = np.radians(length), math.radians(distance)
-    i_of, j_of = _EndTree(a, b).pairs((mid, span / 2 + d_r), (-a, span + d_r))
+    # and both its ends lie within ``distance`` of the arc's circle, the end in the ball too (the band loosened against rounding)
+    i_of, j_of = _EndTree(a, b).pairs((mid, span / 2 + d_r), (-a, span + d_r), circles=normal, band=sin_d * (1 + 1e-9) + 1e-15)
     dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731 - rowwise dot products
     # the loop's own tests, every pair at once: j of the other polarity, its points within ``distance`` of i's
     # circle and i's ends of j's, and their overlap along i's circle as a share of the shorter
