@@ -66,8 +66,8 @@ CLEAR_CONTRAST = 0.15
 #: a line on the floor passing near the camera's foot is seen along a circle nearly through the nadir
 #: too, while vertical edges are rarely seen so steeply.
 POLAR_CAP = 20.0
-#: Candidate directions scored at a time (bounds the (arcs x candidates) arrays).
-CANDIDATES_PER_BLOCK = 2048
+#: Candidate directions scored at a time (bounds the (arcs x candidates) arrays; smaller blocks stay nearer the cache).
+CANDIDATES_PER_BLOCK = 512
 #: Shortest arc that votes for the vertical, degrees.
 MIN_EDGE_LENGTH = 5.0
 
@@ -405,8 +405,9 @@ def _scores(
     # against rounding): these are all the voters and more
     reach = INLIER_SIGMAS * sigma
     limit = np.where(reach < np.pi / 2, np.sin(np.minimum(reach, np.pi / 2)) * (1.0 + 1e-9) + 1e-15, np.inf)
-    rows, cols = np.nonzero(dots < np.minimum(limit, cap)[:, None])
-    r = np.arcsin(np.clip(dots[rows, cols], 0.0, 1.0))
+    flat = np.flatnonzero(dots < np.minimum(limit, cap)[:, None])  # np.nonzero's order, several times as fast in 1-D
+    rows, cols = np.divmod(flat, dots.shape[1])
+    r = np.arcsin(np.clip(dots.ravel()[flat], 0.0, 1.0))
     # the other products only where an arc is near: its start, tangent and end with the candidate, each summed
     # as einsum("ijk,ik->ji") of the stacked ends does it, (x + z) + y, on coordinates gathered one at a time
     vx, vy, vz = v[0][cols], v[1][cols], v[2][cols]
