@@ -326,28 +326,21 @@ def _cmd_warp(args: argparse.Namespace) -> None:
 
 
 def _warp_one(args: argparse.Namespace) -> None:
-    import numpy as np
-
     from ..document.handles import load_handles
     from ..io.images import check_writable, read_panorama, write_bytes
-    from ..raster.strips import MAP_WIDTH, STREAM_WIDTH
+    from ..raster.strips import STREAM_WIDTH
 
     (source,) = args.input
     _check_output(args.output, _IMAGE_SUFFIXES, "output image")
     _refuse_overwrites(args, [("-o", args.output), ("--map", args.map)])
     handles = load_handles(args.handles)
-    in_strips, disk = _in_strips(args, source)
-    if disk is not None:  # too large to hold: read a patch at a time
-        with disk:
-            check_writable(args.output, np.empty((0, *disk.shape[1:]), disk.dtype))
-            map_image = read_panorama(source, width=MAP_WIDTH)  # counted by _in_strips' check
-            _warp_in_strips(args, disk, handles, map_image)
+    if _in_strips(args, source):
+        _warp_in_strips(args, source, handles)
         return
-    # refused before decoding if the warp cannot fit
-    image = read_panorama(source, args.fit, width=args.width, warp=True, streamed=in_strips)
+    image = read_panorama(source, args.fit, width=args.width, warp=True)  # refused before decoding if the warp cannot fit
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
-    if in_strips or (args.width or image.shape[1]) > STREAM_WIDTH:
-        _warp_in_strips(args, image, handles)
+    if (args.width or image.shape[1]) > STREAM_WIDTH:  # a format whose header does not say its size
+        _warp_in_strips(args, source, handles, image)
         return
     result, outputs = _warped_outputs(args, image, handles)
     for path, data in outputs:
@@ -355,57 +348,48 @@ def _warp_one(args: argparse.Namespace) -> None:
     _say(args, f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; {_headline(result)}")
 
 
-def _in_strips(args: argparse.Namespace, source: Path) -> tuple[bool, Any]:
-    """Whether the warp is made in strips, and the panorama as a :class:`~omniwidget.io.large.DiskPanorama` when it stays on disk.
+def _in_strips(args: argparse.Namespace, source: Path) -> bool:
+    """Whether the warp is made in strips: its output is wider than STREAM_WIDTH, or its warp in memory would not fit.
 
-    In strips: an output wider than :data:`~omniwidget.raster.strips.STREAM_WIDTH`, or one whose warp in memory would
-    not fit where the strips' does. On disk: a panorama in strips larger than :data:`~omniwidget.io.large.STREAM_BYTES`
-    decoded (:func:`~omniwidget.io.large.plan_read`). Refused (before decoding) when even so it would not fit, or when
-    ``--fit`` asks to reshape a panorama that large.
+    Known from the file's header; a file whose header does not say its size is decided once decoded.
     """
-    from ..errors import ImageError
-    from ..io.images import available_memory, check_fits, image_header, memory_needed
-    from ..io.large import open_on_disk, plan_read
+    from ..io.images import available_memory, image_header, memory_needed
     from ..raster.strips import STREAM_WIDTH
 
     if source.is_dir():
-        return False, None  # read_panorama says what is wrong with it
+        return False  # read_panorama says what is wrong with it
     header = image_header(source)
     if header is None:
-        return False, None  # its size is known once it is decoded
+        return False
+    if (args.width or max(header.width, header.height)) > STREAM_WIDTH:
+        return True
     have = available_memory()
-    if (args.width or max(header.width, header.height)) <= STREAM_WIDTH and (have is None or memory_needed(source, warp=True, width=args.width) <= have):
-        return False, None
-    if plan_read(header, args.width, strips=True).how != "disk":
-        return True, None
-    if header.width != 2 * header.height:
-        raise ImageError(f"{source}: a {header.width} x {header.height} image is not 2:1, and one this large ({header.describe()}) cannot be made 2:1 (--fit) in memory")
-    check_fits(source, warp=True, width=args.width, streamed=True)
-    return True, open_on_disk(source, header)
+    return have is not None and memory_needed(source, warp=True, width=args.width) > have
 
 
-def _warp_in_strips(args: argparse.Namespace, image: Any, handles: Any, map_image: Any = None) -> None:
-    """A warp wider than :data:`~omniwidget.raster.strips.STREAM_WIDTH`: the method on its map grid, the output written in strips.
+def _warp_in_strips(args: argparse.Namespace, source: Path, handles: Any, image: Any = None) -> None:
+    """The warp made in strips (:func:`~omniwidget.app.strips.strips_of_file`), the output and the map written strip by strip.
 
-    ``image`` may be a panorama on disk, with ``map_image`` a reduced copy of it. The image is written before the map
-    (each whole or not at all): a failure writing the map leaves the image.
+    ``image``: the panorama already decoded. The image is written before the map (each whole or not at all): a failure
+    writing the map leaves the image.
     """
     import numpy as np
 
     from ..io.images import write_image_strips
-    from ..raster.strips import MAP_WIDTH, warp_in_strips
+    from ..raster.strips import MAP_WIDTH
+    from .strips import strips_of_file
 
-    made = warp_in_strips(image, handles, width=args.width, order=args.order, warn=False, map_image=map_image)
-    for message in made.result.warnings:
-        print(f"omniwidget: warning: {message}", file=sys.stderr)
-    height, width = made.shape[:2]
-    show = args.progress or (sys.stderr.isatty() and not args.quiet)
-    progress = (lambda rows: _progress_bar(rows, height, "rows")) if show else None
-    write_image_strips(args.output, made.shape, made.dtype, made.image_strips(), progress=progress)
-    written = [args.output]
-    if args.map is not None:
-        write_image_strips(args.map, (height, width, 2), np.float32, made.map_strips())
-        written.append(args.map)
+    with strips_of_file(source, handles, width=args.width, order=args.order, fit=args.fit, image=image, output=args.output) as made:
+        for message in made.result.warnings:
+            print(f"omniwidget: warning: {message}", file=sys.stderr)
+        height, width = made.shape[:2]
+        show = args.progress or (sys.stderr.isatty() and not args.quiet)
+        progress = (lambda rows: _progress_bar(rows, height, "rows")) if show else None
+        write_image_strips(args.output, made.shape, made.dtype, made.image_strips(), progress=progress)
+        written = [args.output]
+        if args.map is not None:
+            write_image_strips(args.map, (height, width, 2), np.float32, made.map_strips())
+            written.append(args.map)
     names = " and ".join(str(p) for p in written)
     _say(args, f"wrote {names} ({width} x {height}, in strips) in {_elapsed(args)}; {_headline(made.result)} (measured {MAP_WIDTH} wide)")
 

@@ -1148,35 +1148,24 @@ class EditingSession:
     def _save_in_strips(self, doc: Handles, path: str | os.PathLike[str] | None) -> Path:
         """Save image for a panorama too large to warp whole: made and written in strips, its progress in :attr:`status`.
 
-        The panorama is read from disk a patch at a time when it is larger than
-        :data:`~omniwidget.io.large.STREAM_BYTES` decoded (:func:`~omniwidget.io.large.plan_read`),
-        else read whole; the method runs on its map grid (:func:`~omniwidget.raster.strips.warp_in_strips`).
-        ``status["saving"]`` says the rows written and their total as they go, and the message the share.
+        :func:`~omniwidget.app.strips.strips_of_file` chooses where the pixels come from (a patch at a time from disk
+        for a panorama above :data:`~omniwidget.io.large.STREAM_BYTES` decoded, else the panorama in memory) and runs
+        the method on its map grid. ``status["saving"]`` says the rows written and their total as they go, and the
+        message the share.
         """
-        from contextlib import nullcontext
+        from ..io.images import write_image_strips
+        from .strips import strips_of_file
 
-        from ..io.images import check_fits, read_panorama, write_image_strips
-        from ..io.large import open_on_disk, plan_read
-        from ..raster.strips import MAP_WIDTH, warp_in_strips
-
-        source_path = self._image_path
-        if source_path is None:  # pragma: no cover - _in_strips says so
+        if self._image_path is None:  # pragma: no cover - _in_strips says so
             raise ImageError("only a panorama opened from a file is saved in strips")
-        header = image_header(source_path)
-        on_disk = header is not None and plan_read(header, None, strips=True).how == "disk"
-        check_fits(source_path, warp=True, streamed=on_disk)
-        probe = np.empty((0, self._width, *self._working.shape[2:]), self._working.dtype)
-        target = self._target(path, probe)
+        target = self._target(path, np.empty((0, self._width, *self._working.shape[2:]), self._working.dtype))
         height = self._width // 2
         self._set_status(message=f"saving {target.name} ({self._width} x {height}): reading the panorama...", saving={"done": 0, "total": height})
-        opened = open_on_disk(source_path, header) if on_disk and header is not None else nullcontext(None)
-        with opened as disk:
-            map_image = read_panorama(source_path, width=MAP_WIDTH) if disk is not None else None
-            made = warp_in_strips(disk if disk is not None else self.image, doc, warn=False, map_image=map_image)
 
-            def progress(rows: int) -> None:
-                self._set_status(message=f"saving {target.name}: {100 * rows // height}% of {height} rows", saving={"done": rows, "total": height})
+        def progress(rows: int) -> None:
+            self._set_status(message=f"saving {target.name}: {100 * rows // height}% of {height} rows", saving={"done": rows, "total": height})
 
+        with strips_of_file(self._image_path, doc, image=self._full_image, output=target) as made:
             write_image_strips(target, made.shape, made.dtype, made.image_strips(), progress=progress)
         self._say_saved(target, made.shape)
         return target
