@@ -91,6 +91,9 @@ def test_a_panorama_forced_through_the_tiles_warps_to_the_same_bytes(monkeypatch
 
 #: The generated room beyond OpenCV's limit: 34,000 x 17,000, gray (578 MB).
 WIDE = 34_000
+#: Memory of the command's process and libraries, which the estimate leaves out: measured 205-210 MB (peak of
+#: ``omniwidget warp`` on a 128 x 64 panorama), with room for the allocator.
+PROCESS = 250 * 2**20
 
 
 @pytest.fixture(scope="module")
@@ -156,7 +159,7 @@ def test_a_panorama_wider_than_opencvs_limit_warps(wide_room, name, levels):
         f"peak {peak / 2**20:.0f} MB, estimated {estimate / 2**20:.0f} MB"
     )
     assert difference.mean() < levels, f"mean difference {difference.mean():.2f} levels from the warp of the render"
-    assert peak < estimate + 200 * 2**20, f"peak {peak / 2**20:.0f} MB over the estimate {estimate / 2**20:.0f} MB and the process's 200 MB"
+    assert peak < estimate + PROCESS, f"peak {peak / 2**20:.0f} MB over the estimate {estimate / 2**20:.0f} MB and the process's {PROCESS / 2**20:.0f} MB"
 
 
 @pytest.mark.slow
@@ -243,5 +246,5 @@ def test_a_full_width_warp_of_a_panorama_wider_than_opencvs_limit_is_made_in_str
         estimate = memory_needed(folder / "wide.npy", warp=True, width=WIDE, streamed=where == "disk")
     print(f"34,000 px in strips from {where}: {difference.mean():.3f} levels at 4096; peak {peak / 2**20:.0f} MB, estimated {estimate / 2**20:.0f} MB")
     assert difference.mean() < 1.0
-    assert peak < estimate + 200 * 2**20
+    assert peak < estimate + PROCESS
     assert peak < (4 if where == "memory" else 2.5) * 2**30, f"peak {peak / 2**30:.2f} GB"
