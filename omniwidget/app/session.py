@@ -1122,7 +1122,10 @@ class EditingSession:
             shown in the widget (:attr:`status` ``error``); the handles are kept.
 
         The editor's Save image button does the same in the editor's worker (the widget never waits)
-        and also offers the file as a browser download.
+        and also offers the file as a browser download. A panorama wider than
+        :data:`~omniwidget.raster.strips.STREAM_WIDTH` is made and written in strips
+        (:meth:`_save_in_strips`: read from disk a patch at a time when large, its progress in
+        :attr:`status` ``["saving"]``) and not offered as a download.
         """
         if self._in_strips():
             try:

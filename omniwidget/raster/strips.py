@@ -97,15 +97,14 @@ def _ahead(make: Callable[[slice], NDArray], bands: Iterator[slice]) -> Iterator
     """``make(band)`` for each band, in order, computed in threads up to :data:`STRIPS_AHEAD` bands ahead of the taker.
 
     The strips' numpy and OpenCV work releases the GIL, so the next strips are made while
-    the taker encodes or writes this one; memory holds at most a strip a core more.
+    the taker encodes or writes this one; memory holds :data:`STRIPS_AHEAD` strips more.
     """
-    ahead = STRIPS_AHEAD
-    with ThreadPoolExecutor(ahead) as pool:
+    with ThreadPoolExecutor(STRIPS_AHEAD) as pool:
         pending: deque[Future[NDArray]] = deque()
         try:
             for band in bands:
                 pending.append(pool.submit(make, band))
-                if len(pending) > ahead:
+                if len(pending) > STRIPS_AHEAD:
                     yield pending.popleft().result()
             while pending:
                 yield pending.popleft().result()
