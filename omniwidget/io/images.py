@@ -1170,21 +1170,11 @@ STRIP_SUFFIXES = (".npy", ".tif", ".tiff", ".png", ".jpg", ".jpeg")
 TIFF_TILE = 256
 
 
-def _tiles(strips: Iterable[NDArray], shape: tuple[int, ...], dtype: np.dtype, side: int) -> Iterator[NDArray]:
+def _tiles(strips: Iterable[NDArray], side: int) -> Iterator[NDArray]:
     """The tiles of an image given as strips of any rows, row of tiles by row of tiles, left to right (for tifffile)."""
-    band = np.zeros((side, *shape[1:]), dtype)
-    filled = 0
-    for strip in strips:
-        at = 0
-        while at < strip.shape[0]:
-            take = min(side - filled, strip.shape[0] - at)
-            band[filled : filled + take] = strip[at : at + take]
-            filled, at = filled + take, at + take
-            if filled == side:
-                yield from _row_of_tiles(band, side)
-                filled = 0
-    if filled:
-        band[filled:] = 0
+    for band in large.row_blocks(strips, side):
+        if len(band) < side:  # the last row of tiles, zero-padded as tifffile wants
+            band = np.concatenate([band, np.zeros((side - len(band), *band.shape[1:]), band.dtype)])
         yield from _row_of_tiles(band, side)
 
 
@@ -1285,7 +1275,7 @@ def write_image_strips(
             extras = "unassalpha" if len(shape) == 3 and shape[2] in (2, 4) else None
             tifffile.imwrite(
                 tmp,
-                _tiles(checked(), shape, dtype, TIFF_TILE),
+                _tiles(checked(), TIFF_TILE),
                 shape=shape,
                 dtype=dtype,
                 bigtiff=True,

@@ -55,6 +55,7 @@ __all__ = [
     "open_on_disk",
     "plan_read",
     "read_reduced",
+    "row_blocks",
     "stream_bytes",
     "write_jpeg_strips",
     "write_png_strips",
@@ -431,7 +432,7 @@ def write_png_strips(fh: BinaryIO, shape: tuple[int, ...], dtype: np.dtype, stri
     _png_chunk(fh, b"IEND", b"")
 
 
-def _row_blocks(strips: Iterable[NDArray], rows: int) -> Iterator[NDArray]:
+def row_blocks(strips: Iterable[NDArray], rows: int) -> Iterator[NDArray]:
     """The rows of ``strips`` (any rows each) in blocks of ``rows`` rows, the last with what is left."""
     held: list[NDArray] = []
     count = 0
@@ -474,7 +475,7 @@ def write_jpeg_strips(path: str | os.PathLike[str], shape: tuple[int, ...], stri
     os.close(fd)
     try:
         photometric = "rgb" if channels == 3 else "minisblack"
-        blocks = _row_blocks(strips, TIFF_ROWS)
+        blocks = row_blocks(strips, TIFF_ROWS)
         tifffile.imwrite(name, blocks, shape=shape, dtype=np.uint8, photometric=photometric, rowsperstrip=TIFF_ROWS, bigtiff=True)
         try:
             pyvips.Image.new_from_file(name, access="sequential").jpegsave(str(path), Q=JPEG_QUALITY, subsample_mode="on")
