@@ -258,3 +258,13 @@ def test_a_warp_that_would_not_fit_in_memory_is_made_in_strips_where_those_fit(r
     monkeypatch.setenv(MEMORY_VARIABLE, str(streamed // 2))  # not even the strips fit: refused, nothing written
     assert main(["warp", str(tmp_path / "p.png"), "-H", str(tmp_path / "h.json"), "-o", str(tmp_path / "none.png"), "--quiet"]) != 0
     assert not (tmp_path / "none.png").exists()
+
+
+@pytest.mark.parametrize("channels", [1, 2, 3, 4])
+def test_a_tiff_written_in_strips_reads_back_as_write_images(room, tmp_path, channels):
+    """Tiles of 256 from strips of 37 rows (the last row of tiles padded): read back as the TIFF write_image writes."""
+    image = np.dstack([room[0], room[0][..., :1]])[..., :channels] if channels > 1 else room[0][..., 0]
+    image = np.ascontiguousarray(image[:300, :600])
+    write_image_strips(tmp_path / "s.tif", image.shape, image.dtype, (image[r : r + 37] for r in range(0, 300, 37)))
+    write_image(tmp_path / "w.tif", image)
+    assert np.array_equal(read_image(tmp_path / "s.tif"), read_image(tmp_path / "w.tif"))

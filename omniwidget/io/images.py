@@ -1271,12 +1271,17 @@ def write_image_strips(
         else:
             import tifffile
 
-            photometric = "rgb" if len(shape) == 3 and shape[2] in (3, 4) else "minisblack"
-            extras = "unassalpha" if len(shape) == 3 and shape[2] in (2, 4) else None
+            # as OpenCV writes them (so read_image gives the strips back): gray + alpha as RGBA, the fourth channel
+            # "unspecified" (OpenCV reads a gray + alpha tiled TIFF not at all, and RGB of "unassalpha" premultiplied)
+            two = len(shape) == 3 and shape[2] == 2
+            layout = (*shape[:2], 4) if two else shape
+            photometric = "rgb" if len(layout) == 3 and layout[2] in (3, 4) else "minisblack"
+            extras = "unspecified" if len(layout) == 3 and layout[2] == 4 else None
+            tiles = _tiles((strip[..., [0, 0, 0, 1]] if two else strip for strip in checked()), TIFF_TILE)
             tifffile.imwrite(
                 tmp,
-                _tiles(checked(), TIFF_TILE),
-                shape=shape,
+                tiles,
+                shape=layout,
                 dtype=dtype,
                 bigtiff=True,
                 photometric=photometric,
