@@ -88,7 +88,7 @@ BAD = [
     (("options", "rectify"), "some", "options.rectify: expected 'all' or 'each'"),
     (("options", "anchor"), "far", "options.anchor: expected a number"),
     (("options", "anchor"), 0.5, "options.anchor: 0.5 is out of range [1, 180]"),
-    (("options", "blur"), 3, "options.blur: unknown option (allowed: rectify, anchor)"),
+    (("options", "blur"), 3, "options.blur: unknown option (allowed: rectify, anchor, up)"),
     (("format",), "other", "format: expected 'omniwidget.handles'"),
     (("version",), 2, "version: this omniwidget reads version 1"),
     (("handles",), {}, "handles: expected a list"),

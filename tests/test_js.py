@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from omniwidget.document.handles import CageHandle, LineHandle, PointHandle
+from omniwidget.document.handles import CageHandle, Handles, LineHandle, Options, PointHandle
+from omniwidget.method.deformation import deform
 from omniwidget.sphere import coords
 from omniwidget.sphere.moebius import Moebius
 from tests.conftest import offset, random_lonlat
@@ -93,6 +94,20 @@ def _cases(rng: np.random.Generator) -> dict:
             out["drag_maps"].append(
                 {"what": f"cage, carry={carry}", "handle": {"kind": "cage", "vertices": vertices.tolist()}, "points": finals.tolist(),
                  "part": 0, "carry": carry, "images": [_images(mv, probes) for mv in cage.vertex_maps(carry=carry)]}
+            )
+        # the same with the document levelled (options.up): the kernel's own control maps
+        up = (float(rng.uniform(-180, 180)), float(rng.uniform(60, 89)))
+        turn = Moebius.levelling(up)
+        for what, handle, points, part in (
+            ("levelled point centre", PointHandle(h.position, tuple(moved[0]), h.rotation, h.scale), moved, 0),
+            ("levelled line", LineHandle(tuple(start), tuple(end), rectify=False, targets=tuple(map(tuple, targets))), targets, 2),
+            ("levelled cage", cage, finals, 0),
+        ):
+            controls = [c for c in deform(Handles((handle,), Options(up=up))).controls if c.handle == 0]
+            controls = controls[:1] if isinstance(handle, PointHandle) else controls  # a point's own map (then the rungs of its reach)
+            out["drag_maps"].append(
+                {"what": what, "handle": Handles((handle,)).to_dict()["handles"][0], "points": np.asarray(points).tolist(), "part": part, "carry": True,
+                 "turn": turn.as_dict(), "images": [_images(c.moebius, probes) for c in controls]}
             )
     return out
 

@@ -527,6 +527,12 @@ def _kept_lines(result: Any) -> list[int]:
     return sorted(int(i) for i, _ in result.constraints.near_pole)
 
 
+def _warning_kinds(result: Any) -> list[str]:
+    """Per warning of ``result``, what it is about (:attr:`omniwidget.raster.pipeline.Result.warning_kinds`): the editor's groups."""
+    kinds = list(getattr(result, "warning_kinds", ()))
+    return kinds if len(kinds) == len(result.warnings) else ["conflicts"] * len(result.warnings)
+
+
 def _finite_outputs(outputs: list[list[list[float]]]) -> bool:
     return all(np.isfinite(points).all() for points in outputs if points)
 
@@ -672,6 +678,29 @@ class EditingSession:
     def _set_status(self, **fields: Any) -> None:
         self._publish(status={**self.status, **fields})
 
+    def _clear_finished(self) -> None:
+        """An edit begins: the messages of the jobs that ended (Level, Save, Suggest lines that found none) go.
+
+        A job still running keeps its message; Suggest lines' prompt stays while suggestions
+        are shown (:meth:`_show_suggestions` says how many are left).
+        """
+        with self._lock:
+            cleared = {}
+            for job in ("level", "save", "suggest"):
+                fields = self.status.get(job)
+                if not fields or fields.get("state") == "running" or not fields.get("message"):
+                    continue
+                if job == "suggest" and fields.get("state") == "done" and self.suggestions:
+                    continue
+                cleared[job] = {**fields, "message": ""}
+            if cleared:
+                self._set_status(**cleared)
+
+    def _set_save(self, state: str, message: str) -> None:
+        """``status["save"]``: Save's and Save image's ``state`` ("running", "done" or "error") and ``message``."""
+        with self._lock:
+            self._set_status(save={"state": state, "message": message})
+
     # --- the image -----------------------------------------------------------------------
     @property
     def image(self) -> NDArray:
@@ -760,7 +789,8 @@ class EditingSession:
             self._preview_source = self._downscaled(2 * self._preview_width)
             self._full_result = None
             self._suggested, self._dropped = [], set()  # found on the frame shown before
-        self._publish(frame=index, source=self.display_source(), suggestions=[])
+        self._publish(frame=index, source=self.display_source())
+        self._show_suggestions([])
         self._changed(self.document)
 
     @property
@@ -791,8 +821,9 @@ class EditingSession:
             del self._undo[:-HISTORY]
             self._redo.clear()
         self._publish(handles=new)
+        self._clear_finished()
         if self._suggested:
-            self._publish(suggestions=self._shown_suggestions(doc))
+            self._show_suggestions(self._shown_suggestions(doc))
         self._changed(doc)  # the preview starts first; the autosave is written meanwhile
         self._autosave(doc)
 
@@ -1040,7 +1071,9 @@ class EditingSession:
                     "state": "idle",
                     "error": self.status.get("error", ""),
                     "message": f"{result.image.shape[1]} x {result.image.shape[0]} in {seconds:.2f} s",
+                    "result": f"{result.image.shape[1]} x {result.image.shape[0]} in {seconds:.2f} s",
                     "warnings": list(result.warnings),
+                    "warning_kinds": _warning_kinds(result),
                     "conflicts": conflicts,
                     "kept": kept,
                     "reaches": _reaches(result.handles),
@@ -1163,10 +1196,12 @@ class EditingSession:
             raise ImageError("only a panorama opened from a file is saved in strips")
         target = self._target(path, np.empty((0, self._width, *self._working.shape[2:]), self._working.dtype))
         height = self._width // 2
-        self._set_status(message=f"saving {target.name} ({self._width} x {height}): reading the panorama...", saving={"done": 0, "total": height})
+        said = f"saving {target.name} ({self._width} x {height}): reading the panorama..."
+        self._set_status(message=said, saving={"done": 0, "total": height}, save={"state": "running", "message": said})
 
         def progress(rows: int) -> None:
-            self._set_status(message=f"saving {target.name}: {100 * rows // height}% of {height} rows", saving={"done": rows, "total": height})
+            said = f"saving {target.name}: {100 * rows // height}% of {height} rows"
+            self._set_status(message=said, saving={"done": rows, "total": height}, save={"state": "running", "message": said})
 
         with strips_of_file(self._image_path, doc, image=self._full_image, output=target) as made:
             write_image_strips(target, made.shape, made.dtype, made.image_strips(), progress=progress)
@@ -1186,7 +1221,6 @@ class EditingSession:
         return target
 
     @staticmethod
-    @staticmethod
     def _save_image_error(exc: BaseException) -> str:
         text = str(exc) if isinstance(exc, ImageError) else _exception_text(exc)
         return f"could not save the image: {text}; the handles are kept"
@@ -1194,7 +1228,7 @@ class EditingSession:
     def _say_saved(self, path: Path, shape: tuple[int, ...]) -> None:
         with self._lock:
             message = f"{shape[1]} x {shape[0]} saved to {path}"
-            self._set_status(message=message, saved=str(path), saving=None)
+            self._set_status(message=message, saved=str(path), saving=None, save={"state": "done", "message": message})
 
     def _save_image_job(self, doc: Handles, key: str, generation: int) -> None:
         """In the worker: compute and show the full-size result, write it and send it for download.
@@ -1208,9 +1242,11 @@ class EditingSession:
             except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
                 self.last_error = exc
                 self._report_error(self._save_image_error(exc))
+                self._set_save("error", self._save_image_error(exc))
             return
         result = self._compute(doc, key, generation, full=True)
         if result is None:
+            self._set_save("error", "could not save the image: the result could not be computed")
             return  # the computation's error is shown
         try:
             path = self._write_result(result.image, None)
@@ -1218,6 +1254,7 @@ class EditingSession:
         except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
             self.last_error = exc
             self._report_error(self._save_image_error(exc))
+            self._set_save("error", self._save_image_error(exc))
             return
         self._say_saved(path, result.image.shape)
         mime = _MIME.get(path.suffix.lower(), "application/octet-stream")
@@ -1225,6 +1262,7 @@ class EditingSession:
 
     def _save_image_in_worker(self) -> None:
         doc, key = self.document, self._key()
+        self._set_save("running", "saving the image: computing the full-size result...")
         self._schedule(lambda generation: self._save_image_job(doc, key, generation))
 
     # --- save video ---------------------------------------------------------------------------
@@ -1429,7 +1467,7 @@ class EditingSession:
         self._suggested, self._dropped = list(found), set()
         shown = self._shown_suggestions()
         self._publish(suggestions=shown)
-        what = "click one to accept it, Accept all, or Drop them" if shown else "none found"
+        what = "click one to accept it, Accept all, or Drop them" if shown else "none found"  # the prompt: _show_suggestions
         self._set_detect("suggest", state="done", count=len(shown), message=f"{len(shown)} suggested lines in {seconds:.2f} s: {what}")
 
     def _suggestion(self, key: Any) -> Suggestion:
@@ -1457,7 +1495,25 @@ class EditingSession:
         else:
             self._suggestion(key)
             self._dropped.add(int(key))
-        self._publish(suggestions=self._shown_suggestions())
+        self._show_suggestions(self._shown_suggestions())
+
+    def _show_suggestions(self, shown: list[dict]) -> None:
+        """Publish the suggestions shown and make Suggest lines' prompt say how many are left, or go when none is.
+
+        The prompt ("click one to accept it, Accept all, or Drop them") is for suggestions
+        on screen only: once every one was accepted or dropped it is cleared, so that no
+        message asks for a click on buttons that are greyed.
+        """
+        before = len(self.suggestions)
+        self._publish(suggestions=shown)
+        job = self.status.get("suggest") or {}
+        if job.get("state") != "done" or len(shown) == before:
+            return
+        if shown:
+            message = f"{len(shown)} suggested line{'s' * (len(shown) > 1)} left: click one to accept it, Accept all, or Drop them"
+        else:
+            message = ""
+        self._set_detect("suggest", **{**job, "count": len(shown), "message": message})
 
     def level(self, *, wait: bool = False, answer: bool = False) -> None:
         """Level the panorama: find the camera's tilt (:func:`omniwidget.detect.level`) in the background and undo it.
@@ -1658,6 +1714,7 @@ class EditingSession:
             "generation": generation,
             "controls": len(basis.controls),
             "carry": result.handles.options.anchor is not None,
+            "turn": None if (turn := result.handles.options.levelling()) is None else turn.as_dict(),
             "width": width,
             "height": height,
             "origin": list(basis.origin),
@@ -1719,7 +1776,8 @@ class EditingSession:
                 answered = True  # {"done": "level"} once the rotation is applied
             elif op == "save":
                 path = self.save()
-                self._set_status(message=f"saved {len(self.document)} handles to {path}")
+                said = f"saved {len(self.document)} handles to {path}"
+                self._set_status(message=said, save={"state": "done", "message": said})
             elif op == "load":
                 name = str(content.get("name") or "the file")
                 try:

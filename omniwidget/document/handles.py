@@ -63,6 +63,8 @@ SUGGESTED_ANCHOR = 5.0
 DEFAULT_ANCHOR: float | None = SUGGESTED_ANCHOR
 #: The range ``options.anchor`` may take, degrees.
 ANCHOR_RANGE = (1.0, 180.0)
+#: The latitudes ``options.up`` may take, degrees: a levelling turns the panorama by at most 45°.
+UP_LATITUDE_RANGE = (45.0, 90.0)
 #: Angular distance (radians) from a point handle's centre to its arrow tips, the authors' 0.3 rad.
 ARROW_LENGTH = 0.3
 #: Control points closer than this (degrees) count as coincident.
@@ -294,10 +296,23 @@ class Options:
         :mod:`omniwidget.raster.pipeline`). The distance grows with a handle's size. ``None``
         (``"anchor": null``): no background map, the paper's method exactly. The default,
         :data:`SUGGESTED_ANCHOR` (5), measured best on rooms of lines.
+    up : (float, float) or None
+        ``[lon, lat]`` in degrees where the input panorama sees the true vertical (what
+        :func:`omniwidget.level` finds), latitude in :data:`UP_LATITUDE_RANGE`. The method
+        then works on the input levelled: turned by :meth:`levelling` (``up`` to the zenith,
+        the yaw kept) before any handle acts, so the still background shows the levelled
+        panorama, rectified lines are straightened in the levelled frame, and a point's
+        target and turn are those of the levelled view. The handles' input positions stay
+        where they were clicked on the input. None: the input as it is.
     """
 
     rectify: Literal["all", "each"] = "all"
     anchor: float | None = DEFAULT_ANCHOR
+    up: LonLat | None = None
+
+    def levelling(self) -> Moebius | None:
+        """The turn of the input before the handles (:attr:`up` to the zenith), or None without ``up``."""
+        return None if self.up is None else Moebius.levelling(self.up)
 
 
 @dataclass(frozen=True)
@@ -339,7 +354,7 @@ class Handles:
             "format": FORMAT,
             "version": VERSION,
             "handles": [_handle_to_dict(h) for h in self.handles],
-            "options": {"rectify": self.options.rectify, "anchor": self.options.anchor},
+            "options": _options_to_dict(self.options),
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -621,6 +636,8 @@ def _validate_document(doc: Handles) -> None:
         raise HandlesError("options.rectify", f"expected 'all' or 'each', got {_describe(getattr(doc.options, 'rectify', None))}")
     if doc.options.anchor is not None:
         _number(doc.options.anchor, "options.anchor", *ANCHOR_RANGE)
+    if doc.options.up is not None:
+        _up(doc.options.up)
     _check_count([len(h.vertices) if isinstance(h, CageHandle) and isinstance(h.vertices, Sequence) else 1 for h in doc.handles])
     seen: dict[str, int] = {}
     for i, h in enumerate(doc.handles):
@@ -652,8 +669,8 @@ def _parse_document(data: Any) -> Handles:
     if not isinstance(options, Mapping):
         raise HandlesError("options", f"expected an object, got {_describe(options)}")
     for key in options:
-        if key not in ("rectify", "anchor"):
-            raise HandlesError(f"options.{key}", "unknown option (allowed: rectify, anchor)")
+        if key not in ("rectify", "anchor", "up"):
+            raise HandlesError(f"options.{key}", "unknown option (allowed: rectify, anchor, up)")
     rectify = options.get("rectify", "all")
     if rectify not in ("all", "each"):
         raise HandlesError("options.rectify", f"expected 'all' or 'each', got {_describe(rectify)}")
@@ -661,7 +678,26 @@ def _parse_document(data: Any) -> Handles:
     anchor = options.get("anchor", DEFAULT_ANCHOR)
     if anchor is not None:
         anchor = _number(anchor, "options.anchor", *ANCHOR_RANGE)
-    return Handles(tuple(_parse_handle(item, i) for i, item in enumerate(items)), Options(rectify=rectify, anchor=anchor))
+    up = None if options.get("up") is None else _up(options["up"])
+    return Handles(tuple(_parse_handle(item, i) for i, item in enumerate(items)), Options(rectify=rectify, anchor=anchor, up=up))
+
+
+def _up(value: Any) -> LonLat:
+    """``options.up`` checked: a ``[lon, lat]`` whose latitude is in :data:`UP_LATITUDE_RANGE`."""
+    lon, lat = _lonlat(value, "options.up")
+    if not UP_LATITUDE_RANGE[0] <= lat <= UP_LATITUDE_RANGE[1]:
+        raise HandlesError(
+            "options.up[1] (latitude)",
+            f"expected {UP_LATITUDE_RANGE[0]:g} to {UP_LATITUDE_RANGE[1]:g} (up within 45° of the zenith: a levelling), got {lat:g}",
+        )
+    return (lon, lat)
+
+
+def _options_to_dict(options: Options) -> dict[str, Any]:
+    out: dict[str, Any] = {"rectify": options.rectify, "anchor": options.anchor}
+    if options.up is not None:  # left out when not set: documents without it read as before
+        out["up"] = _pair(options.up)
+    return out
 
 
 def _pair(p: Sequence[float]) -> list[float]:

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .handles import ANCHOR_RANGE, DEFAULT_ANCHOR, FORMAT, REACH_RANGE, ROTATION_RANGE, SCALE_RANGE, VERSION
+from .handles import ANCHOR_RANGE, DEFAULT_ANCHOR, FORMAT, REACH_RANGE, ROTATION_RANGE, SCALE_RANGE, UP_LATITUDE_RANGE, VERSION
 
 __all__ = ["DRAFT", "handles_schema"]
 
@@ -64,7 +64,7 @@ def handles_schema() -> dict[str, Any]:
     The ranges are the library's own constants: longitude in [-180, 180] and latitude in
     [-90, 90] degrees (neither is wrapped: a value outside is refused), a point's
     ``rotation`` in ``ROTATION_RANGE`` degrees and ``scale`` in ``SCALE_RANGE``, ``reach`` in ``REACH_RANGE``,
-    ``options.anchor`` in ``ANCHOR_RANGE`` degrees or null.
+    ``options.anchor`` in ``ANCHOR_RANGE`` degrees or null, ``options.up``'s latitude in ``UP_LATITUDE_RANGE``.
 
     Examples
     --------
@@ -196,6 +196,17 @@ def handles_schema() -> dict[str, Any]:
                 description="The still background: the sphere farther than this many degrees from every handle keeps its place; "
                 "null: no background map (the paper's method).",
             ),
+            "up": {
+                "type": ["array", "null"],
+                "description": "Where the input sees the true vertical, [lon, lat] degrees (omniwidget level): the method works on "
+                "the input turned so that it is at the zenith (the yaw kept); null or left out: the input as it is.",
+                "prefixItems": [
+                    {"type": "number", "minimum": -180.0, "maximum": 180.0, "description": "Longitude, degrees."},
+                    {"type": "number", "minimum": UP_LATITUDE_RANGE[0], "maximum": UP_LATITUDE_RANGE[1], "description": "Latitude, degrees."},
+                ],
+                "minItems": 2,
+                "maxItems": 2,
+            },
         },
         "additionalProperties": False,
     }

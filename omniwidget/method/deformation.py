@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Protocol
 
 import numpy as np
@@ -25,7 +25,7 @@ from ..sphere import coords
 from ..sphere.arcs import crossing_pairs, inside_polygon
 from ..sphere.moebius import Moebius
 from . import harmonic
-from .background import BACKGROUND_EASE, cage_insides, carry_insides, ease_background, with_background
+from .background import BACKGROUND, BACKGROUND_EASE, cage_insides, carry_insides, ease_background, with_background
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .harmonic import HarmonicFill, harmonic_fill
 from .limits import check_mesh, check_weights
@@ -33,7 +33,7 @@ from .locate import interpolate, locate_points
 from .mesh import adaptive_mesh
 from .reach import reach_discs, reach_samples, solved, with_reach
 
-__all__ = ["Deformation", "blended_points", "deform"]
+__all__ = ["Deformation", "blended_points", "deform", "levelled_handles", "turned"]
 
 
 #: An empty set of constraints, to strip a solve's controls of its ladders (:func:`.reach.solved`).
@@ -207,7 +207,15 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
     Returns
     -------
     Deformation
+
+    With ``options.up`` the method runs on the document levelled (:func:`levelled_handles`)
+    and every control's map then starts with the levelling turn (:func:`turned`): the
+    result is exactly the levelled document's after the turn of the input.
     """
+    turn = handles.options.levelling()
+    if turn is not None:
+        before = turned(previous, turn.inverse, levelled_handles(previous.handles)) if isinstance(previous, Deformation) else None
+        return turned(deform(levelled_handles(handles), samples=samples, previous=before), turn, handles)
     timings: dict[str, float] = {}
     lap = Laps(timings)
     constraints = build_constraints(handles, samples=samples)
@@ -263,6 +271,49 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
         d = replace(d, fill=getattr(previous, "fill", None)) if same else d.filled()
         lap("fill")
     return d
+
+
+def levelled_handles(handles: Handles) -> Handles:
+    """The document as the method sees it with ``options.up``: every input position turned by the levelling, no ``up``.
+
+    Targets (outputs) are kept; a document without ``up`` comes back as it is.
+    """
+    turn = handles.options.levelling()
+    if turn is None:
+        return handles
+
+    def moved(p: tuple[float, float]) -> tuple[float, float]:
+        lon, lat = turn(np.asarray(p, dtype=np.float64))
+        return (float(lon), float(lat))
+
+    out: list[PointHandle | LineHandle | CageHandle] = []
+    for h in handles.handles:
+        if isinstance(h, PointHandle):
+            out.append(replace(h, position=moved(h.position)))
+        elif isinstance(h, LineHandle):
+            out.append(replace(h, start=moved(h.start), end=moved(h.end)))
+        else:
+            out.append(replace(h, vertices=tuple(moved(v) for v in h.vertices)))
+    return Handles(tuple(out), replace(handles.options, up=None))
+
+
+def turned(d: Deformation, turn: Moebius, handles: Handles) -> Deformation:
+    """A deformation whose every control's map starts with ``turn`` (``M ∘ turn``), for ``handles``.
+
+    The blend of eq. (2) sums the controls' inverse images as vectors, so turning them all
+    turns the blend, and its fill, by ``turn⁻¹``: the deformation of a document whose input
+    positions ``turn`` moved, seen from the input before the turn. The lines' input samples
+    go back by ``turn⁻¹``; the weights (on the output sphere) are unchanged. Without controls
+    the turn becomes the one control (the still background's place).
+    """
+    back = turn.inverse
+    base = d if type(d) is Deformation else Deformation(**{f.name: getattr(d, f.name) for f in fields(Deformation)})  # a Result: its solve only
+    controls = tuple(replace(k, moebius=k.moebius @ turn) for k in d.controls) or (Control(turn, BACKGROUND, "the levelling turn"),)
+    lines = tuple((k, back(samples)) for k, samples in base.constraints.lines)
+    fill = base.fill
+    if fill is not None:
+        fill = HarmonicFill(*(back.apply_xyz(v.reshape(-1, 3)).reshape(v.shape) for v in (fill.blend, fill.filled)), fill.held)
+    return replace(base, handles=handles, constraints=replace(base.constraints, controls=controls, lines=lines), fill=fill)
 
 
 def _same_maps(before: Sequence[Control], now: Sequence[Control]) -> bool:

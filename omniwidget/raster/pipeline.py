@@ -49,7 +49,19 @@ from .warping import (
 if TYPE_CHECKING:
     from ..evaluate.quality import Summary
 
-__all__ = ["FOLD_WARNING_AREA", "BlendWarning", "Result", "blend_coordinates", "warp"]
+__all__ = [
+    "FOLD_WARNING_AREA",
+    "BlendWarning",
+    "CageWarning",
+    "CrossingWarning",
+    "FoldWarning",
+    "GiveWayWarning",
+    "PoleLineWarning",
+    "Result",
+    "SamePointWarning",
+    "blend_coordinates",
+    "warp",
+]
 
 #: Fold-overs covering at least this share of the sphere are reported as a BlendWarning
 #: (1e-5 is about 20 pixels at 2048 x 1024); smaller ones only show in ``Result.folds``.
@@ -84,7 +96,92 @@ class _measured_once:
 
 
 class BlendWarning(UserWarning):
-    """Handles whose constraints conflict (the paper's Fig. 15); the result is still an image."""
+    """Handles whose constraints conflict (the paper's Fig. 15); the result is still an image.
+
+    Each warning of :attr:`Result.warnings` is of one of the subclasses below, by where it
+    comes from (:attr:`Result.warning_kinds` has their ``kind``, which the editor groups
+    the warnings by); ``warp(..., warn=True)`` issues it as that class.
+    """
+
+    #: What the warnings of this class are about, a short phrase (the editor's group title).
+    kind = "conflicts"
+
+
+class PoleLineWarning(BlendWarning):
+    """A rectified line over or close to a pole: kept as it is (the still background), or twisting the panorama."""
+
+    kind = "lines over a pole"
+
+
+class CageWarning(BlendWarning):
+    """A handle moving what a cage that holds its inside still holds."""
+
+    kind = "handles moving a still cage's inside"
+
+
+class CrossingWarning(BlendWarning):
+    """Two lines whose output images cross each other."""
+
+    kind = "lines crossing in the output"
+
+
+class SamePointWarning(BlendWarning):
+    """Constraints of several handles on one mesh vertex, their weights averaged."""
+
+    kind = "constraints on the same point"
+
+
+class GiveWayWarning(BlendWarning):
+    """Handles whose maps give way where the blend folded (their lines not straight there)."""
+
+    kind = "handles giving way"
+
+
+class FoldWarning(BlendWarning):
+    """Where the blend folded over: untangled, or still shown turned over."""
+
+    kind = "fold-overs"
+
+
+def _method_kinds(d: Deformation) -> list[type[BlendWarning]]:
+    """The class of each of the method's warnings (``d.warnings``), by the check that made it.
+
+    :func:`~omniwidget.method.deformation.deform` lists them in this order: a rectified line
+    over a pole per ``constraints.near_pole`` entry, then handles moving a still cage's
+    inside, lines crossing in the output (one per pair of line handles whose output images
+    cross, :func:`~omniwidget.sphere.arcs.crossing_pairs`), and last constraints on the same
+    point. The counts are taken again here from the same data (the warnings' text is not
+    read); should they not add up, the rest are plain :class:`BlendWarning`.
+    """
+    from ..document.handles import CageHandle, LineHandle, PointHandle
+    from ..sphere.arcs import crossing_pairs, inside_polygon
+
+    total, handles = len(d.warnings), d.handles.handles
+    poles = min(len(d.constraints.near_pole), total)
+    if poles == total:
+        return [PoleLineWarning] * total
+    cages = 0
+    for i, cage in enumerate(handles):
+        if isinstance(cage, CageHandle) and cage.finals == cage.vertices:
+            for j, other in enumerate(handles):
+                if j == i:
+                    continue
+                if isinstance(other, PointHandle):
+                    moves = other.final != other.position or other.scale != 1.0 or other.rotation != 0.0
+                    where: list[Any] = [other.position, other.final]
+                elif isinstance(other, LineHandle):
+                    moves, where = True, [other.start, other.end]
+                else:
+                    moves, where = other.finals != other.vertices, [*other.vertices, *other.finals]
+                cages += bool(moves and inside_polygon(np.asarray(where, np.float64), cage.vertices).any())
+    controls, lines = d.constraints.controls, d.constraints.lines
+    curves = [controls[c].moebius(samples) for c, samples in lines]
+    named = {(controls[lines[a][0]].handle, controls[lines[b][0]].handle) for a, b in crossing_pairs(curves)}
+    crossings = sum(1 for a, b in named if a != b)
+    same = total - poles - cages - crossings
+    if same < 0:
+        return [PoleLineWarning] * poles + [BlendWarning] * (total - poles)
+    return [PoleLineWarning] * poles + [CageWarning] * cages + [CrossingWarning] * crossings + [SamePointWarning] * same
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -112,6 +209,10 @@ class Result(Deformation):
         The source pixel coordinates the output was resampled by (the blend, evaluated on a
         coarse grid where that is exact enough); None for a single map, which is resampled
         exactly. :meth:`placed_map` turns them into ``[lon, lat]``.
+    warning_kinds : tuple of str
+        One per entry of ``warnings``: the ``kind`` of its :class:`BlendWarning` subclass
+        ("lines crossing in the output", "constraints on the same point", ...), what the
+        editor groups them by.
     """
 
     image: NDArray
@@ -119,6 +220,7 @@ class Result(Deformation):
     source_width: int
     folds: FoldOver
     coordinates: NDArray[np.float32] | None = field(default=None, repr=False)
+    warning_kinds: tuple[str, ...] = ()
 
     def placed_map(self) -> NDArray[np.float64]:
         """The inverse map that placed the output's pixels, ``[lon, lat]`` in degrees, (H, W, 2) float64.
@@ -343,12 +445,13 @@ def _held_pixels(d: Deformation, width: int) -> NDArray[np.bool_]:
 def _give_way(
     d: Deformation, folds: FoldOver, width: int, src_width: int, exact: bool
 ) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch], list[str]]:
-    """The deformation with the maps of the handles where it still folds relaxed toward the identity, as little as clears it.
+    """The deformation with the maps of the handles where it still folds relaxed toward the background's, as little as clears it.
 
     The controls whose weight is at least 0.1 at a turned-over pixel are relaxed together:
-    each map ``M`` becomes ``M^t`` (:meth:`~omniwidget.sphere.moebius.Moebius.power`), and
+    each map ``M`` becomes ``M^t`` (:meth:`~omniwidget.sphere.moebius.Moebius.power`; with
+    ``options.up``, ``(M L⁻¹)^t L`` for the levelling ``L``), and
     the first ``t`` of :data:`GIVE_WAY` whose blend, untangled, turns nothing over is kept; at
-    ``t = 0`` those maps are the identity and the blend is the still background's there; if
+    ``t = 0`` those maps are the still background's and the blend is the background's there; if
     it still folds then, every handle gives way (the identity folds nothing).
     Returns the deformation, the coordinates, their fold check, the untangled windows and the
     warning that says who gave way and how far.
@@ -361,8 +464,10 @@ def _give_way(
     strong = interpolate(d.weights, d.faces, face, bary).max(axis=0) >= 0.1
     involved = {int(j) for j in np.flatnonzero(strong) if d.controls[j].handle != BACKGROUND}
 
+    turn = d.handles.options.levelling() or Moebius.identity()  # the still background's map: the input levelled, or as it is
+
     def attempt(t: float) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch]]:
-        controls = tuple(replace(c, moebius=c.moebius.power(t)) if j in involved else c for j, c in enumerate(d.controls))
+        controls = tuple(replace(c, moebius=(c.moebius @ turn.inverse).power(t) @ turn) if j in involved else c for j, c in enumerate(d.controls))
         relaxed = replace(d, constraints=replace(d.constraints, controls=controls)).filled()
         coordinates, turned, _ = blend_coordinates(relaxed, width, src_width, exact=exact)
         return (relaxed, *_untangled(coordinates, turned, src_width, _kept(relaxed, width)[1]))
@@ -464,6 +569,7 @@ def warp(
     width = check_warp_arguments(image, width, order)
     d = deform(handles, samples=samples, previous=previous)
     timings, problems = dict(d.timings), list(d.warnings)
+    classes = _method_kinds(d)
     if d.weights is None or d.vertices is None or d.faces is None:
         laps = Laps(timings)
         single = d.moebius or Moebius.identity()
@@ -481,20 +587,25 @@ def warp(
             if left.area > 0 and GIVE_WAY:  # folds no window clears: the handles there give way as little as clears them
                 d, untangled, left, patches, given = _give_way(d, left, width, image.shape[1], exact)
                 problems += given
+                classes += [GiveWayWarning] * len(given)
                 lines = _line_pixels(d, width)
             coordinates, folds = untangled, left
-            problems += _lines_given_way(handles, lines, patches)
+            given_lines = _lines_given_way(handles, lines, patches)
+            problems += given_lines
+            classes += [GiveWayWarning] * len(given_lines)
             laps("untangle")
         inverse = patched_inverse(filled_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], *mesh, width), d.fill), patches)
         out = remap_panorama(image, coordinates, order)
         laps("resampling")
         if at_folds is not None and (patches or folds.area >= FOLD_WARNING_AREA):
             problems.append(_fold_warning(handles, d.controls, at_folds, folds.area, patches, width))
-    for p in problems if warn else ():
-        warnings.warn(p, BlendWarning, stacklevel=2)
+            classes.append(FoldWarning)
+    for p, category in zip(problems, classes, strict=True) if warn else ():
+        warnings.warn(p, category, stacklevel=2)
     kept = {f.name: getattr(d, f.name) for f in fields(Deformation)}
     return Result(
         **{**kept, "warnings": tuple(problems), "timings": timings},
+        warning_kinds=tuple(c.kind for c in classes),
         image=out,
         inverse=inverse,
         source_width=image.shape[1],

@@ -145,6 +145,31 @@ class Moebius:
         return cls.from_points_xyz(basis, (r @ basis).T)
 
     @classmethod
+    def levelling(cls, up: ArrayLike) -> Moebius:
+        """The rotation that turns ``up`` to the zenith by the shortest turn (about ``up × z``): the yaw is kept.
+
+        Parameters
+        ----------
+        up : array_like, shape (2,)
+            ``[lon, lat]`` in degrees where a panorama sees the true vertical, north of the equator.
+
+        Raises
+        ------
+        ValueError
+            If ``up`` is not north of the equator (a turn of 90° or more is no levelling).
+        """
+        u = coords.lonlat_to_xyz(np.asarray(up, dtype=np.float64))
+        if u.shape != (3,) or not u[2] > 1e-12:
+            raise ValueError(f"up must be a [lon, lat] north of the equator, got {up!r}")
+        axis = np.array([u[1], -u[0], 0.0])  # u x z
+        s, c = float(np.linalg.norm(axis)), float(u[2])
+        if s < 1e-15:
+            return cls.identity()
+        k = axis / s
+        kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+        return cls.from_rotation(np.eye(3) + s * kx + (1.0 - c) * (kx @ kx))
+
+    @classmethod
     def rotation(cls, axis: ArrayLike, angle: float) -> Moebius:
         """Rotation of the sphere by ``angle`` degrees about the direction ``axis`` ``[lon, lat]``.
 
@@ -201,6 +226,11 @@ class Moebius:
         ``rotation`` additionally turns the neighbourhood of ``center`` counter-clockwise (degrees).
         """
         return cls.point_map(center, center, scale, rotation)
+
+    def as_dict(self) -> dict[str, list[float]]:
+        """The matrix normalised to determinant 1 as JSON-ready ``{"a": [re, im], "b": ..., "c": ..., "d": ...}`` (the editor's form)."""
+        m = self.matrix / np.sqrt(np.linalg.det(self.matrix))
+        return {k: [float(v.real), float(v.imag)] for k, v in zip("abcd", m.ravel(), strict=True)}
 
     # --- algebra -------------------------------------------------------------------
     def __matmul__(self, other: Moebius) -> Moebius:

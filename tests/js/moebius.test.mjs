@@ -103,7 +103,7 @@ test("bestRotation is coords.best_rotation", { skip }, () => {
 
 test("dragMaps are the handles' maps as the kernel builds them", { skip }, () => {
   for (const c of cases.drag_maps) {
-    const maps = m.dragMaps(c.handle, c.points, c.part, c.carry);
+    const maps = m.dragMaps(c.handle, c.points, c.part, c.carry, c.turn || null);
     assert.equal(maps.length, c.images.length, c.what);
     maps.forEach((map, i) => close(images(map), c.images[i], 1e-9, `${c.what}, map ${i}`));
   }

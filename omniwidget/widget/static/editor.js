@@ -576,7 +576,7 @@ function liveFrame(ed, d) {
   if (!b || b.index !== d.index) return;
   let maps;
   try {
-    maps = dragMaps(items(ed)[d.index], d.points, d.part, b.carry);
+    maps = dragMaps(items(ed)[d.index], d.points, d.part, b.carry, b.turn);
   } catch (err) {
     return; // control points on top of each other: no map, the last frame stays
   }

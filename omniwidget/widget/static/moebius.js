@@ -283,9 +283,12 @@ export function bestRotation(source, target) {
  * @param {LonLat[]} points its output control points, [lon, lat] in degrees
  * @param {number} part the control point dragged, -1 the whole handle
  * @param {boolean} carry the still background (a cage's maps carry its best rotation)
+ * @param {Moebius | null} [turn] the document's levelling (options.up): the handle's maps are made for its
+ *   input positions turned by it, then start with it (omniwidget/method/deformation.py, levelled_handles and turned)
  * @returns {Moebius[]} input to output
  */
-export function dragMaps(h, points, part, carry) {
+export function dragMaps(h, points, part, carry, turn = null) {
+  if (turn) return dragMaps(levelledHandle(h, turn), points, part, carry).map((m) => compose(m, turn));
   if (h.kind === "point") {
     const final = points[0];
     let { scale = 1, rotation = 0 } = h;
@@ -300,4 +303,18 @@ export function dragMaps(h, points, part, carry) {
   const r = bestRotation(h.vertices, points);
   const whole = fromRotation(r);
   return h.vertices.map((v, i) => compose(shortestTurn(matVec(r, lonlatToXYZ(v)), lonlatToXYZ(points[i])), whole));
+}
+
+/**
+ * The handle with its input positions turned by `turn` (deformation.levelled_handles): what the kernel's method sees
+ * of it under options.up.
+ * @param {Handle} h
+ * @param {Moebius} turn
+ * @returns {Handle}
+ */
+export function levelledHandle(h, turn) {
+  const at = (p) => xyzToLonLat(applyXYZ(turn, lonlatToXYZ(p)));
+  if (h.kind === "point") return { ...h, position: at(h.position) };
+  if (h.kind === "line") return { ...h, start: at(h.start), end: at(h.end) };
+  return { ...h, vertices: h.vertices.map(at) };
 }
