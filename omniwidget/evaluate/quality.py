@@ -61,6 +61,7 @@ __all__ = [
     "dense_straightness",
     "kink",
     "kink_of_curve",
+    "kept_lines",
     "near_mask",
     "displacement",
     "far_field",
@@ -756,6 +757,13 @@ class Summary:
         (:func:`far_field`), where a person expects nothing to move.
     line_handles : tuple of int
         The handle each entry of ``lines`` belongs to (empty when not known).
+    kept : tuple of (int, str)
+        Lines kept as they are on purpose, which no one asked to be straight: the handle and
+        why, ``"pole"`` (a rectified line over or close to a pole, which the still background
+        keeps as it is: :attr:`~omniwidget.method.constraints.Constraints.near_pole`) or
+        ``"held"`` (a line neither rectified nor given targets: its map is the identity).
+        :meth:`line` measures the other lines and names these apart; ``lines``,
+        :attr:`straightness` and :attr:`relaxed` still count them.
     """
 
     method: str
@@ -771,6 +779,7 @@ class Summary:
     width: int
     far: FarField | None = None
     line_handles: tuple[int, ...] = ()
+    kept: tuple[tuple[int, str], ...] = ()
 
     @property
     def relaxed(self) -> tuple[tuple[int, float], ...]:
@@ -791,17 +800,35 @@ class Summary:
         return math.nan if any(math.isnan(v) for v in self.lines) else max(self.lines)
 
     def line(self) -> str:
-        """The figures in one line of text, as the editor shows them.
+        """The figures in one line of text, as the editor shows them: what matters first.
+
+        The straightness headline measures the lines asked to be straight; lines kept as they
+        are on purpose (:attr:`kept`) are named apart ("1 line over a pole kept as it is"),
+        since their distance from straight says nothing of the warp. Relaxed lines are
+        named, three at most and a count of the others.
 
         Examples
         --------
         >>> Summary("bbw", (0.1, 0.25), 0.031, 0.42, 0.0, 0.3, 1.0, 0.12, None, 0.2, 2048).line()
         'lines within 0.25 px · folds 0% · sphere shown 100% · moved 0.12° on average · distortion 0.031 (p99 0.42)'
+        >>> Summary("bbw", (0.1, 55.0), 0.031, 0.42, 0.0, 0.3, 1.0, 0.12, None, 0.2, 2048,
+        ...         line_handles=(0, 1), kept=((1, "pole"),)).line().split(" · ")[:2]
+        ['lines within 0.1 px', '1 line over a pole kept as it is']
         """
+        kept = {h for h, _ in self.kept}
+        measured = [v for h, v in self._handle_lines() if h not in kept]
         parts = []
         if self.lines:
-            worst = self.straightness
-            parts.append("a line is not shown" if math.isnan(worst) else f"lines within {worst:.2g} px")
+            shown = [v for v in measured if not math.isnan(v)]
+            hidden = len(measured) - len(shown)
+            if shown:
+                parts.append(f"lines within {max(shown):.2g} px" + (f", {hidden} not shown" if hidden else ""))
+            elif hidden:
+                parts.append("no line is shown" if hidden > 1 else "the line is not shown")
+        for why, one, many in (("pole", "line over a pole kept as it is", "lines over a pole kept as they are"), ("held", "line held as drawn", "lines held as drawn")):
+            n = sum(1 for _, w in self.kept if w == why)
+            if n:
+                parts.append(f"1 {one}" if n == 1 else f"{n} {many}")
         parts += [
             f"folds {100 * self.fold_over:.2g}%",
             f"sphere shown {100 * self.coverage:.3g}%",
@@ -810,12 +837,21 @@ class Summary:
         ]
         if self.cage_motion is not None:
             parts.append(f"cages still to {self.cage_motion:.2g} px")
-        for h, v in self.relaxed:
+        relaxed = [(h, v) for h, v in self.relaxed if h not in kept]
+        for h, v in relaxed[:3]:
             parts.append(f"handles[{h}] (line) relaxed to {v:.2g} px" if math.isfinite(v) else f"handles[{h}] (line) not shown")
+        if len(relaxed) > 3:
+            parts.append(f"{len(relaxed) - 3} more line{'s' * (len(relaxed) > 4)} relaxed")
         if self.far is not None and self.far.share > 0:
             far = self.far.displacement
             parts.append(f"far from the handles moved {far:.2g}°" if far >= 0.005 else "far from the handles still")
         return " · ".join(parts)
+
+    def _handle_lines(self) -> list[tuple[int, float]]:
+        """``(handle, px)`` per entry of :attr:`lines`; handle -1 where :attr:`line_handles` is not known."""
+        if len(self.line_handles) == len(self.lines):
+            return list(zip(self.line_handles, self.lines, strict=True))
+        return [(-1, v) for v in self.lines]
 
     def as_dict(self) -> dict[str, Any]:
         """The figures as plain numbers (JSON-ready: NaN becomes None), with ``straightness`` the worst line.
@@ -908,7 +944,37 @@ def summary(result: Any) -> Summary:
         width=width,
         far=far,
         line_handles=tuple(int(result.controls[result.constraints.lines[chain[0]][0]].handle) for chain in result.constraints.chains),
+        kept=kept_lines(result.handles, result.constraints),
     )
+
+
+def kept_lines(handles: Any, constraints: Any) -> tuple[tuple[int, str], ...]:
+    """The lines a warp keeps as they are on purpose (:attr:`Summary.kept`), by handle index.
+
+    Parameters
+    ----------
+    handles : Handles
+        The document warped.
+    constraints : Constraints
+        Its constraints (``near_pole``: the rectified lines over or close to a pole).
+
+    Returns
+    -------
+    tuple of (int, str)
+        ``(index, "pole")`` for a rectified line over or close to a pole that the still
+        background keeps as it is (the paper's mode, ``anchor`` None, moves it: not kept);
+        ``(index, "held")`` for a line neither rectified nor given targets; in handle order.
+    """
+    from ..document.handles import LineHandle
+
+    pole = {int(i) for i, _ in constraints.near_pole} if handles.options.anchor is not None else set()
+    found = []
+    for i, h in enumerate(handles.handles):
+        if i in pole:
+            found.append((i, "pole"))
+        elif isinstance(h, LineHandle) and not h.rectify and h.targets is None:
+            found.append((i, "held"))
+    return tuple(found)
 
 
 # --- fidelity to what the handles ask ---------------------------------------------------
