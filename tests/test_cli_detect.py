@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from omniwidget.app.cli import main
-from omniwidget.document.handles import LineHandle, PointHandle, load_handles
+from omniwidget.detect import level
+from omniwidget.document.handles import LineHandle, Options, load_handles
 from omniwidget.evaluate.scenes import synthetic_room
 from omniwidget.io.images import read_image, write_image
 from omniwidget.sphere import coords
@@ -77,11 +78,11 @@ def test_level_makes_the_vertical_edges_vertical_and_the_map_reproduces_the_outp
     assert out.count("\n") == 1 and "pitch" in out and "roll" in out and "vertical edges" in out, out
     assert sorted(p.name for p in files.iterdir()) == ["level.json", "level.png", "map.npy", "room.png"]  # no temporary files
 
-    # the handles file: one point handle "level", the paper's mode (the rotation alone)
+    # the handles file: no handles, options.up set, the default mode otherwise (the rotation alone)
     doc = load_handles(files / "level.json")
-    (handle,) = doc.handles
-    assert isinstance(handle, PointHandle) and handle.id == "level" and doc.options.anchor is None
-    rotation = handle.moebius()
+    assert doc.handles == () and doc.options.up is not None and doc.options.anchor == Options().anchor
+    rotation = doc.options.levelling()
+    assert rotation is not None
 
     # the map is the rotation's inverse at every output pixel: the output is the input seen through it
     inverse = np.load(files / "map.npy")
@@ -142,15 +143,14 @@ def test_suggest_writes_line_handles_that_lie_on_the_room_s_edges(files, room, c
     assert on_edges >= 0.9, distances
 
 
-def test_suggest_with_level_adds_the_level_handle(files, capsys):
+def test_suggest_with_level_sets_up_and_keeps_the_still_background(files, capsys):
     assert main(["suggest", str(files / "room.png"), "-o", str(files / "both.json"), "--max-lines", "10", "--level"]) == 0
     out = capsys.readouterr().err
     doc = load_handles(files / "both.json")
-    (level,) = [h for h in doc.handles if h.id == "level"]
-    rest = [h for h in doc.handles if h is not level]
-    assert isinstance(level, PointHandle) and doc.options.anchor is None
-    assert rest and all(isinstance(h, LineHandle) for h in rest)
-    assert f"({len(rest)} line(s), the best of " in out and "; and the level handle: pitch " in out and out.count("\n") == 1, out
+    found = level(read_image(files / "room.png"))
+    assert doc.options.up == pytest.approx(found.up, abs=1e-9) and doc.options.anchor == Options().anchor
+    assert doc.handles and all(isinstance(h, LineHandle) and h.id != "level" for h in doc.handles)
+    assert f"({len(doc.handles)} line(s), the best of " in out and "; levelled (options.up): pitch " in out and out.count("\n") == 1, out
 
 
 def test_bad_input_gives_one_line_and_exit_2(files, capsys):

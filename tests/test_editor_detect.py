@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from omniwidget.app.session import EditingSession
-from omniwidget.document.handles import LineHandle, PointHandle
+from omniwidget.document.handles import LineHandle, Options
 from omniwidget.errors import LevelError
 from omniwidget.evaluate.scenes import synthetic_room
 from omniwidget.io.images import write_image
@@ -125,10 +125,10 @@ def test_level_applies_the_rotation_as_one_undoable_edit_carrying_the_handles(ro
     assert sent.count({"done": "level"}) == 1
     assert s.status["level"]["state"] == "done", s.status
     assert "pitch" in s.status["level"]["message"] and "roll" in s.status["level"]["message"]
-    level = next(h for h in s.document.handles if h.id == "level")
-    assert isinstance(level, PointHandle) and len(s.document) == 2 and s.history["undo"] == 1
+    doc = s.document
+    assert len(doc) == 1 and doc.options.up is not None and doc.options.anchor == Options().anchor and s.history["undo"] == 1  # the mode kept
     # the rotation takes where the camera saw the zenith to the north pole
-    error = 90.0 - float(level.moebius()(_up())[1])
+    error = 90.0 - float(doc.options.levelling()(_up())[1])
     print(f"\nlevel in the editor: the zenith lands {error:.3f}° from the pole")
     assert error < 0.3
     s.wait(TIMEOUT)
@@ -158,10 +158,10 @@ def test_level_never_blocks_and_lands_on_the_handles_as_they_are_then(room_path,
     s.edit({"handles": [LINE]})  # an edit meanwhile: kept under the rotation
     release.set()
     assert s.idle(TIMEOUT)
-    assert sorted(h.kind for h in s.document.handles) == ["line", "point"]
+    assert [h.kind for h in s.document.handles] == ["line"] and s.document.options.up is not None
     assert s.history["undo"] == 2
     s.undo()
-    assert [h.kind for h in s.document.handles] == ["line"]
+    assert [h.kind for h in s.document.handles] == ["line"] and s.document.options.up is None
 
 
 def test_an_edit_made_while_the_rotation_is_applied_is_not_undone_by_it(room_path, monkeypatch):
@@ -180,7 +180,7 @@ def test_an_edit_made_while_the_rotation_is_applied_is_not_undone_by_it(room_pat
     monkeypatch.setattr(detect, "level_document", racing)
     s.level(wait=True)
     assert calls == [0, 1]  # levelled again, on the handles with the edit
-    assert sorted(h.kind for h in s.document.handles) == ["line", "point"]
+    assert [h.kind for h in s.document.handles] == ["line"] and s.document.options.up is not None
     assert s.status["level"]["state"] == "done"
 
 
@@ -219,8 +219,8 @@ def test_the_widget_syncs_the_suggestions_and_levels_from_python(room_path):
     assert ed.accept_all_suggestions() == remaining
     assert ed.suggestions == [] and len(ed.handles["handles"]) >= 2
     ed.level(wait=True)
-    assert any(h.get("id") == "level" for h in ed.handles["handles"])
+    assert ed.handles["options"]["up"][1] > 45 and ed.handles["options"]["anchor"] == Options().anchor
     ed.wait()
     ed.undo()
-    assert not any(h.get("id") == "level" for h in ed.handles["handles"])
+    assert "up" not in ed.handles["options"]
     ed.session.idle(TIMEOUT)

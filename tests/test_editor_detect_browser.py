@@ -2,8 +2,8 @@
 
 The editor opens a generated room taken with a tilted camera (known pitch and roll, written
 to a file). Suggest lines shows the suggestions dashed on the input; a click on one accepts
-it (one line handle more in the kernel), Accept all adds the rest, Level adds the "level"
-handle and the result changes, Undo takes the level back: the kernel's document is checked
+it (one line handle more in the kernel), Accept all adds the rest, Level sets the document's
+``options.up`` (the still background kept) and the result changes, Undo takes the level back: the kernel's document is checked
 after each step.
 """
 
@@ -112,7 +112,7 @@ def test_suggest_accept_one_accept_all_level_undo(jupyter_server, browser):
         bh.wait_until(lambda: editor_attr(nb, "data-suggestions") == "0", timeout=20, description="no suggestion left")
         generation = wait_idle(nb, generation, "the result with every suggestion")
 
-        # 4. Level: the "level" handle, the result changes
+        # 4. Level: options.up set, the still background kept, the result changes
         nb.output('[data-stage="side"]').click()
         nb.output('[data-action="handles"]').click()  # the image itself
         result = Pane(nb, "result")
@@ -120,12 +120,12 @@ def test_suggest_accept_one_accept_all_level_undo(jupyter_server, browser):
         result_before = result.pixels()
         nb.output('[data-action="level"]').click()
         levelled = bh.wait_until(
-            lambda: (lambda d: d if any(h.get("id") == "level" for h in d["handles"]) else None)(kernel_json(client, "ed.handles")),
+            lambda: (lambda d: d if d["options"].get("up") else None)(kernel_json(client, "ed.handles")),
             timeout=60,
-            description="the level handle in the kernel",
+            description="options.up in the kernel's document",
             diagnostics=nb.diagnostics,
         )
-        assert len(levelled["handles"]) == count + 1
+        assert len(levelled["handles"]) == count and levelled["options"]["anchor"] == before_level["options"]["anchor"]
         assert kernel_json(client, "ed.status['level']['state']") == "done"
         generation = wait_idle(nb, generation, "the levelled result")
         result_after = result.pixels()

@@ -147,7 +147,7 @@ def _parser() -> argparse.ArgumentParser:
         parents=[quiet],
         help="level a panorama taken with a tilted camera",
         description="Find how far the camera was from level (pitch and roll) from the vertical edges in the panorama, "
-        "and warp it by the rotation that makes them vertical, as warp does with the level handle.",
+        "and warp it by the rotation that makes them vertical, as warp does with a handles file's options.up.",
     )
     level.add_argument("input", type=Path, help="equirectangular image (2:1)")
     level.add_argument("-o", "--output", type=Path, required=True, help="the levelled image (.png, .jpg, .tif, .npy)")
@@ -167,7 +167,7 @@ def _parser() -> argparse.ArgumentParser:
     suggest.add_argument("input", type=Path, help="equirectangular image (2:1)")
     suggest.add_argument("-o", "--output", type=Path, required=True, help="the handles file to write (.json)")
     suggest.add_argument("--max-lines", type=int, default=40, metavar="N", help="at most this many lines, best first (default: 40)")
-    suggest.add_argument("--level", action="store_true", help="also level the panorama: the lines, then the level handle")
+    suggest.add_argument("--level", action="store_true", help="also level the panorama: the file's options.up set (the lines straightened in the levelled frame)")
     suggest.add_argument("--fit", choices=("pad", "stretch"), help="make a non-2:1 input 2:1 first, as for warp (default: refuse it)")
 
     demo = sub.add_parser(
@@ -672,7 +672,7 @@ def _warp_video(args: argparse.Namespace) -> None:
 
 
 def _cmd_level(args: argparse.Namespace) -> None:
-    """``omniwidget level``: the camera's tilt from the vertical edges, undone by the level handle's rotation (as warp does)."""
+    """``omniwidget level``: the camera's tilt from the vertical edges, undone by the levelling turn (``options.up``, as warp does)."""
     from ..detect import level
     from ..errors import ImageError
     from ..io.images import check_writable, read_panorama, write_bytes
@@ -720,8 +720,8 @@ def _cmd_suggest(args: argparse.Namespace) -> None:
     note = ""
     if args.level:
         found = level(image, suggestions=suggestions)  # too few vertical edges: a LevelError, nothing written
-        handles = level_document(handles, found.moebius())
-        note = f"; and the level handle: pitch {found.pitch:+.2f}°, roll {found.roll:+.2f}° from {len(found.edges)} vertical edges"
+        handles = level_document(handles, found)
+        note = f"; levelled (options.up): pitch {found.pitch:+.2f}°, roll {found.roll:+.2f}° from {len(found.edges)} vertical edges"
     text = handles.to_json() + "\n"
     Handles.from_json(text)  # what is written is what the loader reads back
     write_bytes(args.output, text.encode())

@@ -1519,7 +1519,7 @@ class EditingSession:
         """Level the panorama: find the camera's tilt (:func:`omniwidget.detect.level`) in the background and undo it.
 
         The rotation is applied as one undoable edit (:func:`omniwidget.detect.level_document`:
-        the point handle ``"level"`` added or replaced, the other handles carried), on the
+        ``options.up`` set, the mode kept, the handles' outputs carried by the turn), on the
         handles as they are when it is found. Too few vertical edges: the status says so
         (``status["error"]`` and ``status["level"]``) and nothing changes.
 
@@ -1552,10 +1552,9 @@ class EditingSession:
             try:
                 found = level(self._detect_source())
                 seconds = time.perf_counter() - start
-                rotation = found.moebius()
                 for _ in range(3):  # on the handles as they are: an edit made while level_document ran is never undone
                     base = self.handles
-                    levelled = level_document(Handles.from_dict(base), rotation)
+                    levelled = level_document(Handles.from_dict(base), found)
                     if self.handles == base:
                         self.edit(levelled)
                         break

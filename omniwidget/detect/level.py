@@ -30,19 +30,18 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..document.handles import CageHandle, Handle, Handles, LineHandle, Options, PointHandle
+from ..document.handles import CageHandle, Handle, Handles, Options, PointHandle
 from ..errors import LevelError
-from ..method.constraints import build_constraints
 from ..sphere import coords
 from ..sphere.moebius import Moebius
 from .lines import DETECT_WIDTH, Suggestion, check_detectable, suggest_lines
 
-__all__ = ["LEVEL_ID", "Level", "level", "level_document", "level_handle", "tilt_rotation", "up_to_pitch_roll"]
+__all__ = ["LEVEL_ID", "Level", "level", "level_document", "tilt_rotation", "up_to_pitch_roll"]
 
 LonLat = tuple[float, float]
 FloatArray = NDArray[np.float64]
 
-#: The id of the level point handle in a document.
+#: The id of the point handle that levelled documents of earlier versions (:func:`level_document` replaces it by ``options.up``).
 LEVEL_ID = "level"
 #: Farthest the vertical direction is looked for from the zenith, degrees.
 MAX_TILT = 35.0
@@ -104,18 +103,6 @@ def up_to_pitch_roll(up: ArrayLike) -> tuple[float, float]:
     return pitch, roll
 
 
-def _turn(a: FloatArray, b: FloatArray) -> FloatArray:
-    """The rotation matrix about ``a × b`` taking unit vector ``a`` to unit vector ``b`` (not antipodal)."""
-    axis = np.cross(a, b)
-    s = float(np.linalg.norm(axis))
-    c = float(a @ b)
-    if s < 1e-15:
-        return np.eye(3)
-    k = axis / s
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + s * kx + (1.0 - c) * (kx @ kx)
-
-
 @dataclass(frozen=True)
 class Level:
     """How far a panorama's camera was from level, and the rotation that levels it.
@@ -145,136 +132,97 @@ class Level:
 
     def rotation(self) -> FloatArray:
         """The levelling rotation as a matrix, shape (3, 3): ``up`` to the zenith about ``up × z``."""
-        return _turn(coords.lonlat_to_xyz(self.up), np.array([0.0, 0.0, 1.0]))
+        return self.moebius().apply_xyz(np.eye(3)).T
 
     def moebius(self) -> Moebius:
         """The levelling rotation as a Möbius map, input to output: ``up`` to the zenith, the yaw unchanged."""
-        return Moebius.from_rotation(self.rotation())
+        return Moebius.levelling(self.up)
 
     def handles(self) -> Handles:
-        """A handles document whose warp is exactly the levelling rotation.
-
-        One point handle (id ``"level"``) whose map is the rotation, and no still
-        background (``Options(anchor=None)``), which would otherwise hold the sphere far
-        from the handle unrotated.
-        """
-        return Handles((level_handle(self.moebius()),), Options(anchor=None))
+        """A handles document whose warp is exactly the levelling rotation: no handles, ``options.up`` set."""
+        return Handles((), Options(up=self.up))
 
 
-def level_handle(rotation: Moebius, position: LonLat = (0.0, 0.0)) -> PointHandle:
-    """The point handle (id ``"level"``) whose map is the rotation ``rotation``.
+def level_document(doc: Handles, up: Level | LonLat | Moebius) -> Handles:
+    """The editor's one-click Level: ``doc`` with its input levelled (``options.up``), the result changed only by the turn.
 
-    Parameters
-    ----------
-    rotation : Moebius
-        A rotation of the sphere.
-    position : (float, float)
-        Where the handle sits in the input, ``[lon, lat]``.
-
-    Returns
-    -------
-    PointHandle
-        ``position`` to ``rotation(position)``, turned by the rotation's local turn there.
-
-    Raises
-    ------
-    ValueError
-        If ``rotation`` is not a rotation of the sphere.
-    """
-    scale, turn = rotation.local_scale_rotation(position)
-    if abs(scale - 1.0) > 1e-9:
-        raise ValueError(f"the level edit needs a rotation of the sphere, got a map that scales by {scale:g}")
-    target = rotation(np.asarray(position, dtype=np.float64))
-    handle = PointHandle(
-        position=(float(position[0]), float(position[1])), target=(float(target[0]), float(target[1])), rotation=turn, id=LEVEL_ID
-    )
-    if not handle.moebius().isclose(rotation, 1e-7):
-        raise ValueError("the level edit needs a rotation of the sphere")
-    return handle
-
-
-def level_document(doc: Handles, rotation: Moebius) -> Handles:
-    """The editor's one-click Level: ``doc`` followed by the rotation ``rotation``.
-
-    Any previous handle with id ``"level"`` is removed and the level point handle
-    (:func:`level_handle`) is added; every other handle's output is carried by the
-    rotation: a point's target becomes ``R(final)`` and its turn grows by ``R``'s local
-    turn there, a cage's targets ``R(finals)``, a line's targets ``R(current targets)``
-    (for a line without explicit targets, the control points' images under the map the
-    method gives it now). The still background is switched off (``anchor=None``): it
-    would hold the far sphere unrotated. The level handle sits where the other handles
-    are farthest, so that far from them the warp is the rotation.
-
-    Near every handle the new warp is the rotation after the old one. Far from the
-    handles it is a blend of the rotation and the carried handles' maps: a cage's maps are
-    shifts from its vertices to their targets, which do not turn with the rotation, so far
-    from a cage the warp turns a little less than the rotation does.
+    The document's ``options.up`` becomes the new ``up``: the method then works on the input
+    turned by ``L_new`` (``up`` to the zenith, :meth:`Options.levelling`), and the still
+    background, if on, stays on and shows the levelled panorama. Each handle's output is
+    carried by ``Q = L_new L_old⁻¹`` (``L_old`` the document's levelling before, the
+    identity without one): a point's target becomes ``Q(target)`` and its turn changes by
+    ``Q``'s local turns (its map becomes ``Q M Q⁻¹`` in the levelled frame), a cage's
+    targets ``Q(targets)``, a line's explicit targets ``Q(targets)``. A rectified line
+    without targets stays rectified: it is straightened again in the new frame, where its
+    verticals are vertical. So near points, cages and fixed lines, and far from every
+    handle, the new warp is ``Q`` after the old one; only rectified lines change beyond
+    that. A handle with id ``"level"`` (the point handle that levelled documents of earlier
+    versions) is taken as the old levelling and removed.
 
     Parameters
     ----------
     doc : Handles
-    rotation : Moebius
-        The levelling rotation (:meth:`Level.moebius`).
+    up : Level, (float, float) or Moebius
+        Where the input sees the true vertical (a :class:`Level`, or its ``up``), or the
+        levelling turn itself (:meth:`Level.moebius`: a rotation taking some ``up`` to the
+        zenith by the shortest turn).
 
     Returns
     -------
     Handles
         A new document; ``doc`` is not changed.
+
+    Raises
+    ------
+    ValueError
+        For a rotation that also turns about the vertical (a levelling keeps the yaw), or
+        an ``up`` farther than 45° from the zenith.
     """
-    kept = tuple(h for h in doc.handles if h.id != LEVEL_ID)
-    base = replace(doc, handles=kept)
-    line_maps = _line_maps(base)
+    new_up = _up_of(up)
+    legacy = [h for h in doc.handles if h.id == LEVEL_ID and isinstance(h, PointHandle)]
+    old = doc.options.levelling() or Moebius.identity()
+    if legacy:
+        old = legacy[0].moebius() @ old
+    new = Moebius.levelling(new_up)
+    q = new @ old.inverse
+
+    def carried(points: Sequence[LonLat]) -> tuple[LonLat, ...]:
+        moved = q(np.asarray(points, dtype=np.float64))
+        return tuple((float(lon), float(lat)) for lon, lat in moved)
+
     out: list[Handle] = []
-    for i, h in enumerate(kept):
+    for h in doc.handles:
+        if h.id == LEVEL_ID and isinstance(h, PointHandle):
+            continue
         if isinstance(h, PointHandle):
-            final = h.final
-            _, turn = rotation.local_scale_rotation(final)
-            target = rotation(np.asarray(final, dtype=np.float64))
-            out.append(replace(h, target=(float(target[0]), float(target[1])), rotation=_wrap_turn(h.rotation + turn)))
+            final = h.target if h.target is not None else tuple(old(np.asarray(h.position, dtype=np.float64)))  # as shown now
+            (target,) = carried([final])
+            at_target = q.local_scale_rotation(final)[1]
+            at_position = q.local_scale_rotation(old(np.asarray(h.position, dtype=np.float64)))[1]
+            out.append(replace(h, target=target, rotation=_wrap_turn(h.rotation + at_target - at_position)))
         elif isinstance(h, CageHandle):
-            finals = rotation(np.asarray(h.finals, dtype=np.float64))
-            out.append(replace(h, targets=tuple((float(lon), float(lat)) for lon, lat in finals)))
+            finals = h.targets if h.targets is not None else [tuple(v) for v in old(np.asarray(h.vertices, dtype=np.float64))]
+            out.append(replace(h, targets=carried(finals)))
+        elif h.targets is not None:
+            start, middle, end = carried(h.targets)
+            out.append(replace(h, targets=(start, middle, end)))
         else:
-            current = (
-                np.asarray(h.targets, dtype=np.float64) if h.targets is not None else line_maps.get(i, h.moebius())(h.control_points())
-            )
-            moved = rotation(current)
-            start, middle, end = ((float(lon), float(lat)) for lon, lat in moved)
-            out.append(replace(h, targets=(start, middle, end), rectify=False))
-    out.append(level_handle(rotation, _farthest_from(kept)))
-    return Handles(tuple(out), replace(doc.options, anchor=None))
+            out.append(h)
+    return Handles(tuple(out), replace(doc.options, up=new_up))
 
 
-def _farthest_from(handles: Sequence[Handle]) -> LonLat:
-    """A place on the equator band farthest from every control point of ``handles`` (``(0, 0)`` when there are none).
-
-    The level handle's map is the rotation alone; far from the other handles the blend is
-    then nearly that rotation, as the edit means.
-    """
-    points = [p for h in handles for p in (*_inputs(h), *_outputs(h))]
-    if not points:
-        return (0.0, 0.0)
-    lon, lat = np.meshgrid(np.arange(-180.0, 180.0, 5.0), np.arange(-60.0, 61.0, 5.0))
-    candidates = np.stack([lon.ravel(), lat.ravel()], axis=-1)
-    near = (coords.lonlat_to_xyz(candidates) @ coords.lonlat_to_xyz(np.array(points, dtype=np.float64)).T).max(axis=1)
-    lon0, lat0 = candidates[int(np.argmin(near))]
-    return (float(lon0), float(lat0))
-
-
-def _inputs(h: Handle) -> list[LonLat]:
-    if isinstance(h, PointHandle):
-        return [h.position]
-    if isinstance(h, CageHandle):
-        return list(h.vertices)
-    return [h.start, h.end]
-
-
-def _outputs(h: Handle) -> list[LonLat]:
-    if isinstance(h, PointHandle):
-        return [h.final]
-    if isinstance(h, CageHandle):
-        return list(h.finals)
-    return [] if h.targets is None else list(h.targets)
+def _up_of(up: Level | LonLat | Moebius) -> LonLat:
+    """``up`` as ``[lon, lat]``: a Level's, a pair's, or the direction a levelling turn takes to the zenith."""
+    if isinstance(up, Level):
+        return up.up
+    if isinstance(up, Moebius):
+        lon, lat = up.inverse(np.array([0.0, 90.0]))
+        found = (float(lon), float(lat))
+        if lat <= 0 or not Moebius.levelling(found).isclose(up, 1e-7):
+            raise ValueError("the rotation is not a levelling: it also turns about the vertical (a levelling keeps the yaw)")
+        return found
+    lon, lat = (float(v) for v in up)
+    return (lon, lat)
 
 
 def _wrap_turn(angle: float) -> float:
@@ -285,16 +233,6 @@ def _wrap_turn(angle: float) -> float:
     elif out <= -180.0:
         out += 360.0
     return out
-
-
-def _line_maps(doc: Handles) -> dict[int, Moebius]:
-    """The map the method gives each line without explicit targets (one control), by index in ``doc.handles``."""
-    if not any(isinstance(h, LineHandle) and h.targets is None for h in doc.handles):
-        return {}
-    pieces: dict[int, list[Moebius]] = {}
-    for control in build_constraints(doc).controls:
-        pieces.setdefault(control.handle, []).append(control.moebius)
-    return {i: maps[0] for i, maps in pieces.items() if len(maps) == 1 and isinstance(doc.handles[i], LineHandle)}
 
 
 # --- the estimate --------------------------------------------------------------------

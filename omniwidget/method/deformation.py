@@ -312,7 +312,8 @@ def turned(d: Deformation, turn: Moebius, handles: Handles) -> Deformation:
     lines = tuple((k, back(samples)) for k, samples in base.constraints.lines)
     fill = base.fill
     if fill is not None:
-        fill = HarmonicFill(*(back.apply_xyz(v.reshape(-1, 3)).reshape(v.shape) for v in (fill.blend, fill.filled)), fill.held)
+        blend, filled = (back.apply_xyz(v.reshape(-1, 3)).reshape(v.shape) for v in (fill.blend, fill.filled))
+        fill = replace(fill, blend=blend, filled=filled)
     return replace(base, handles=handles, constraints=replace(base.constraints, controls=controls, lines=lines), fill=fill)
 
 
