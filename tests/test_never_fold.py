@@ -48,10 +48,13 @@ def _check_lines(result) -> None:
     """Every line within RELAXED_PX, or named by a warning: giving way where the blend folded on it (or beyond
     untangling), or crossing another line in the output."""
     figures = chain_straightness(result)
-    gave_way = {int(m.group(1)) for w in result.warnings if (m := re.match(r"handles\[(\d+)\] \(line\) gives way where the blend folded", w))}
+    gave_way = set(result.gave_way)  # maps relaxed where no window cleared the fold, or lines through an untangled window
+    said = {int(m.group(1)) for w in result.warnings if (m := re.match(r"handles\[(\d+)\] \(line\) gives way where the blend folded", w))}
     for w in result.warnings:
-        if " give way where their blend folded beyond untangling" in w:  # maps relaxed where no window cleared the fold
-            gave_way |= {int(i) for i in re.findall(r"handles\[(\d+)\]", w.split(" give way ")[0])}
+        if " give way where their blend folded beyond untangling" in w:
+            said |= {int(i) for i in re.findall(r"handles\[(\d+)\]", w.split(" give way ")[0])}
+    assert said == gave_way, (said, result.gave_way)  # the warnings name the same handles
+    for w in result.warnings:
         if w.endswith("cross each other in the output"):  # a conflict said: suggested room 3 at 1024, a line across
             gave_way |= {int(i) for i in re.findall(r"handles\[(\d+)\]", w)}  # one kept as it is by a pole (0.56 px)
     # a line that crosses one of those in the input meets it where it gave way (suggested room 3 at 1024: handles[19],

@@ -33,7 +33,7 @@ from .locate import interpolate, locate_points
 from .mesh import adaptive_mesh
 from .reach import reach_discs, reach_samples, solved, with_reach
 
-__all__ = ["Deformation", "blended_points", "deform", "levelled_handles", "turned"]
+__all__ = ["Deformation", "blended_points", "crossing_handles", "deform", "levelled_handles", "turned"]
 
 
 #: An empty set of constraints, to strip a solve's controls of its ladders (:func:`.reach.solved`).
@@ -435,16 +435,32 @@ def _pole_lines(handles: Handles, constraints: Constraints) -> list[str]:
     return found
 
 
-def _crossing_lines(constraints: Constraints) -> list[str]:
-    """Warnings for lines whose output images cross (their maps disagree: the blend folds between them)."""
+def crossing_handles(constraints: Constraints) -> list[tuple[int, int]]:
+    """Pairs of line handles whose output images cross (their maps disagree: the blend folds between them), sorted.
+
+    Parameters
+    ----------
+    constraints : Constraints
+        The controls and their lines' input samples (each line through its own map).
+
+    Returns
+    -------
+    list of (int, int)
+        Handle indices ``(a, b)``, ``a < b``: pieces of one line never count.
+    """
     controls = constraints.controls
     curves = [controls[c].moebius(samples) for c, samples in constraints.lines]
-    found = []
+    found = set()
     for a, b in crossing_pairs(curves):
         ha, hb = controls[constraints.lines[a][0]].handle, controls[constraints.lines[b][0]].handle
         if ha != hb:
-            found.append(f"handles[{ha}] (line) and handles[{hb}] (line) cross each other in the output")
-    return sorted(set(found))
+            found.add((min(ha, hb), max(ha, hb)))
+    return sorted(found)
+
+
+def _crossing_lines(constraints: Constraints) -> list[str]:
+    """Warnings for lines whose output images cross (:func:`crossing_handles`)."""
+    return [f"handles[{a}] (line) and handles[{b}] (line) cross each other in the output" for a, b in crossing_handles(constraints)]
 
 
 def _previous_weights(previous: Solved | None, vertices: NDArray, faces: NDArray, b: NDArray, bc: NDArray) -> NDArray[np.float64] | None:

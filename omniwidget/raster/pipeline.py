@@ -213,6 +213,10 @@ class Result(Deformation):
         One per entry of ``warnings``: the ``kind`` of its :class:`BlendWarning` subclass
         ("lines crossing in the output", "constraints on the same point", ...), what the
         editor groups them by.
+    gave_way : tuple of int
+        Indices of the handles that gave way where the blend folded beyond untangling
+        (their maps relaxed, or their lines running through an untangled window): named in
+        ``warnings`` too; their lines are not straight there.
     """
 
     image: NDArray
@@ -221,6 +225,7 @@ class Result(Deformation):
     folds: FoldOver
     coordinates: NDArray[np.float32] | None = field(default=None, repr=False)
     warning_kinds: tuple[str, ...] = ()
+    gave_way: tuple[int, ...] = ()
 
     def placed_map(self) -> NDArray[np.float64]:
         """The inverse map that placed the output's pixels, ``[lon, lat]`` in degrees, (H, W, 2) float64.
@@ -402,10 +407,10 @@ def _line_pixels(d: Deformation, width: int) -> list[tuple[int, NDArray[np.int64
     return out
 
 
-def _lines_given_way(handles: Handles, lines: list[tuple[int, NDArray[np.int64]]], patches: Sequence[Patch]) -> list[str]:
-    """A warning per line that runs through a window untangled without keeping it (:attr:`Patch.keeps_lines`)."""
+def _lines_given_way(handles: Handles, lines: list[tuple[int, NDArray[np.int64]]], patches: Sequence[Patch]) -> tuple[list[int], list[str]]:
+    """The lines that run through a window untangled without keeping it (:attr:`Patch.keeps_lines`), and a warning per line."""
     given = sorted({h for p in patches if not p.keeps_lines for h, px in lines if p.covers(px).any()})
-    return [
+    return given, [
         f"handles[{h}] ({handles.handles[h].kind}) gives way where the blend folded on it: it is not straight there "
         "(Result.quality.relaxed says how far)"
         for h in given
@@ -444,7 +449,7 @@ def _held_pixels(d: Deformation, width: int) -> NDArray[np.bool_]:
 
 def _give_way(
     d: Deformation, folds: FoldOver, width: int, src_width: int, exact: bool
-) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch], list[str]]:
+) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch], list[str], list[int]]:
     """The deformation with the maps of the handles where it still folds relaxed toward the background's, as little as clears it.
 
     The controls whose weight is at least 0.1 at a turned-over pixel are relaxed together:
@@ -453,8 +458,8 @@ def _give_way(
     the first ``t`` of :data:`GIVE_WAY` whose blend, untangled, turns nothing over is kept; at
     ``t = 0`` those maps are the still background's and the blend is the background's there; if
     it still folds then, every handle gives way (the identity folds nothing).
-    Returns the deformation, the coordinates, their fold check, the untangled windows and the
-    warning that says who gave way and how far.
+    Returns the deformation, the coordinates, their fold check, the untangled windows, the
+    warning that says who gave way and how far, and their handles' indices.
     """
     if d.vertices is None or d.faces is None or d.weights is None:
         raise ValueError("the deformation has no weights: one Möbius map does it all (warp_moebius)")
@@ -483,7 +488,7 @@ def _give_way(
     said = f"{names} give way where their blend folded beyond untangling: their maps are taken {100 * t:.0f}% of the way"
     if left.area > 0:
         said += f", and {100 * left.area:.3g}% of the sphere is still shown turned over"
-    return relaxed, coordinates, left, patches, [said]
+    return relaxed, coordinates, left, patches, [said], sorted({d.controls[j].handle for j in involved})
 
 
 def _patch_count(mask: NDArray[np.bool_]) -> int:
@@ -570,6 +575,7 @@ def warp(
     d = deform(handles, samples=samples, previous=previous)
     timings, problems = dict(d.timings), list(d.warnings)
     classes = _method_kinds(d)
+    gave_way: set[int] = set()  # handles whose maps or lines gave way where the blend folded
     if d.weights is None or d.vertices is None or d.faces is None:
         laps = Laps(timings)
         single = d.moebius or Moebius.identity()
@@ -585,12 +591,14 @@ def warp(
             lines, keep = _kept(d, width)
             untangled, left, patches = _untangled(coordinates, folds, image.shape[1], keep)
             if left.area > 0 and GIVE_WAY:  # folds no window clears: the handles there give way as little as clears them
-                d, untangled, left, patches, given = _give_way(d, left, width, image.shape[1], exact)
+                d, untangled, left, patches, given, relaxed = _give_way(d, left, width, image.shape[1], exact)
                 problems += given
                 classes += [GiveWayWarning] * len(given)
+                gave_way.update(relaxed)
                 lines = _line_pixels(d, width)
             coordinates, folds = untangled, left
-            given_lines = _lines_given_way(handles, lines, patches)
+            through, given_lines = _lines_given_way(handles, lines, patches)
+            gave_way.update(through)
             problems += given_lines
             classes += [GiveWayWarning] * len(given_lines)
             laps("untangle")
@@ -606,6 +614,7 @@ def warp(
     return Result(
         **{**kept, "warnings": tuple(problems), "timings": timings},
         warning_kinds=tuple(c.kind for c in classes),
+        gave_way=tuple(sorted(gave_way)),
         image=out,
         inverse=inverse,
         source_width=image.shape[1],
