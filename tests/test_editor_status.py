@@ -141,15 +141,10 @@ def test_no_message_is_left_from_a_finished_step(room, tmp_path, monkeypatch):
 
 def test_level_s_message_stays_until_the_next_edit(room, tmp_path, monkeypatch):
     import omniwidget.detect as detect
-    from omniwidget.sphere.moebius import Moebius
+    from omniwidget.detect.level import Level
 
-    class Found:  # what detect.level finds (the detector itself is tested in tests/test_editor_detect.py)
-        pitch, roll, edges = 6.0, -4.0, (0,) * 12
-
-        def moebius(self):
-            return Moebius.rotation((90.0, 0.0), 6.0)
-
-    monkeypatch.setattr(detect, "level", lambda image: Found())
+    found = Level(pitch=6.0, roll=-4.0, up=(30.0, 84.0))  # what detect.level finds (tested in tests/test_editor_detect.py)
+    monkeypatch.setattr(detect, "level", lambda image: found)
     path = tmp_path / "room.png"
     write_image(path, room)
     s = EditingSession(path, autosave=False, quality=False, preview_width=256)

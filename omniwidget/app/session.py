@@ -1002,7 +1002,7 @@ class EditingSession:
         with self._lock:
             self._generation += 1
             generation = self._generation
-            self._set_status(state="busy", message="computing...", error="", notice=self._notice)
+            self._set_status(state="busy", message="computing...", error="", notice=self._notice, newest=generation)
         self._worker.submit(lambda: job(generation))
 
     def _report_error(self, message: str) -> None:

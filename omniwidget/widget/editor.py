@@ -182,17 +182,26 @@ class Editor(anywidget.AnyWidget):
         handles are kept whatever fails, with the edit that could not be computed, and the
         last good result stays on screen), ``notice`` (the autosave: handles restored from
         it, a file that could not be read or written), ``warnings`` (conflicts and
-        fold-overs, naming handles), ``conflicts`` (their indices), ``kept`` (the indices of
+        fold-overs, naming handles), ``warning_kinds`` (one per warning, what it is about:
+        the ``kind`` of its :class:`~omniwidget.raster.pipeline.BlendWarning` class, "lines
+        crossing in the output", "constraints on the same point", ..., which the widget groups
+        them by), ``conflicts`` (their indices), ``kept`` (the indices of
         rectified lines over or close to a pole that the still background keeps as they are:
         drawn dashed in green, their warning shown on hover), ``reaches`` (per handle a
         point's reach in degrees, its ``reach`` or the default the method takes, None for
         lines and cages: the dashed ring drawn round the selected point, which a drag sets
         as one edit), ``fold_area`` (share of
-        the sphere shown turned over), ``seconds`` and ``width`` of the last computation;
+        the sphere shown turned over), ``result`` (the result shown: its size and time),
+        ``seconds`` and ``width`` of the last computation, ``generation`` (the edit it
+        answers) and ``newest`` (the newest edit asked for: the widget times a person's
+        action to the first image newer than that);
         for a video, ``video`` once Save video was asked for: ``state`` ("map", "running",
         "done", "cancelled" or "error"), ``done`` and ``total`` frames, ``fps``, ``path``
-        and ``message``; ``suggest`` and ``level`` once asked for: ``state`` ("running",
-        "done" or "error") and ``message``.
+        and ``message``; ``suggest``, ``level`` and ``save`` (Save, Save image) once asked
+        for: ``state`` ("running", "done" or "error") and ``message``. A job's message goes
+        when it is stale: Level's, Save's (and Suggest lines' "none found") when the next
+        edit begins, Suggest lines' prompt once no suggestion is left to accept (it says how
+        many are left meanwhile).
     autosave_path : Path or None
         The autosave file (see ``autosave``), None when autosave is off.
     other_autosaves : list of Path

@@ -7,7 +7,9 @@
 // arcs (handles.js), the view of the panorama on a canvas, which wraps across the ±180° seam
 // (view.js), hit testing (hit.js), the edits of the handles document (edits.js), the
 // handles' Möbius maps (moebius.js), a video's frame label and Save video's status line
-// (video.js), and the suggested lines a click accepts (suggest.js). This file holds the
+// (video.js), the suggested lines a click accepts (suggest.js), and what the status area
+// says, the warnings grouped and folded, the time from an action to its image and the
+// cursor (status.js). This file holds the
 // DOM: the one state object, the canvases, the events, and the messages to and from the kernel.
 //
 // Drags happen here at display frame rate; only their end reaches the kernel, as a new
@@ -23,7 +25,8 @@ import { HIT, hitTest, onCurve, onRing, pointDistance } from "./hit.js";
 import { createLive, MOVING_PIXELS } from "./live.js";
 import { dragMaps, inverse } from "./moebius.js";
 import { circle, distance, geodesic } from "./sphere.js";
-import { detectRunning, detectStatusText, suggestionArc, suggestionAt } from "./suggest.js";
+import { actionOnDone, actionOnStatus, cursorFor, headline, jobMessages, startAction, warningView } from "./status.js";
+import { detectRunning, suggestionArc, suggestionAt } from "./suggest.js";
 import { frameLabel, videoRunning, videoStatusText } from "./video.js";
 import { copies, fitView, panBy, screenPath, screenToLonLat, toScreen, zoomAt } from "./view.js";
 
@@ -72,7 +75,7 @@ const SHORTCUTS = [
   ["F", "fit the panorama to the view"],
   ["H", "show or hide the handles"],
   ["A / S / R", "rectify all lines / rectify the selected line / reset the selected handle"],
-  ["?", "this help"],
+  ["?", "this help (Esc, its × or a click outside it closes it)"],
   ["Ctrl+S", "save the notebook (passed on to JupyterLab)"],
   ["Shift+Enter / Ctrl+Enter / Alt+Enter", "run the cell and select the next / run it / run it, insert a cell (passed on to JupyterLab)"],
 ];
@@ -104,8 +107,10 @@ const KEEPS_RESULT = new Set(["save", "save_video", "cancel_video", "suggest", "
  * @property {LonLat[][] | null} localOutputs outputs as the last drag left them, until the kernel's arrive
  * @property {boolean} space the space bar is down: a drag pans
  * @property {boolean} help the help is shown
- * @property {number | null} released performance.now() of the last edit, for the latency figure
- * @property {number | null} latency milliseconds from the last edit to its result on screen
+ * @property {((e: PointerEvent) => void) | null} closeHelp the window's listener that closes the help on a click outside it
+ * @property {import("./status.js").Action | null} action the person's last action that waits for its image (status.js)
+ * @property {{ms: number, cause: string} | null} latency from the last action to its image on screen
+ * @property {{open: Set<string>, all: Set<string>, groups: boolean}} unfolded the warning groups opened, those showing all, all groups shown
  * @property {LonLat | null} cursor the position under the mouse
  * @property {string} localNote the editor's own note in the status bar
  * @property {number} pendingCount commands that change the handles, sent and not yet done
@@ -141,8 +146,10 @@ function initialState() {
     localOutputs: null,
     space: false,
     help: false,
-    released: null,
+    closeHelp: null,
+    action: null,
     latency: null,
+    unfolded: { open: new Set(), all: new Set(), groups: false },
     cursor: null,
     localNote: "",
     pendingCount: 0,
@@ -194,6 +201,7 @@ function render({ model, el: host }) {
   return () => {
     resize.disconnect();
     unwire();
+    toggleHelp(ed, false);
   };
 }
 
@@ -226,7 +234,7 @@ function buildUI(ed) {
   const panesBox = el("div", { class: "ow-panes" }, ...panes.map((p) => p.box));
   const message = el("div", { class: "ow-message" });
   const cursorInfo = el("span", { class: "ow-cursor" });
-  const helpBox = buildHelp();
+  const helpBox = buildHelp(ed);
   const liveCanvas = el("canvas", { class: "ow-live", hidden: "" }); // live.js draws the live result here
   const frames = buildFrames(ed);
   root.append(toolbar, frames.box, panesBox, el("div", { class: "ow-status" }, message, cursorInfo), helpBox, liveCanvas);
@@ -318,10 +326,11 @@ function buildPane(kind) {
   return { kind, canvas, box, ctx: canvas.getContext("2d"), w: 0, h: 0 };
 }
 
-function buildHelp() {
+function buildHelp(ed) {
   return el(
     "div",
     { class: "ow-help", hidden: "" },
+    el("button", { class: "ow-help-close", type: "button", title: "Close the help (Esc, or a click outside it)", "aria-label": "close", onclick: () => toggleHelp(ed, false) }, "×"),
     el("h3", {}, "Keyboard and mouse"),
     el("table", {}, ...SHORTCUTS.map(([k, what]) => el("tr", {}, el("th", {}, k), el("td", {}, what)))),
     el("p", {}, "Positions are [lon, lat] in degrees whatever the zoom. Draw on the input; move control points on the result."),
@@ -357,18 +366,20 @@ function waitingForKernel(ed) {
 }
 
 // The new handles document to the kernel; false if there is no change (or none may start yet).
-function commit(ed, next) {
+// `cause` names the person's action, timed to the image it brings: "release" (the mouse
+// release that ended a drag or a line), "click", "key".
+function commit(ed, next, cause = "release") {
   if (waitingForKernel(ed)) return false;
   if (JSON.stringify(next) === JSON.stringify(doc(ed))) return false;
-  ed.state.released = performance.now();
+  ed.state.action = { ...startAction(performance.now(), cause, status(ed)), op: "" };
   ed.model.set("handles", next);
   ed.model.save_changes();
   return true;
 }
 
-function command(ed, op, content = {}) {
+function command(ed, op, content = {}, cause = "click") {
   const { state } = ed;
-  if (!KEEPS_RESULT.has(op)) state.released = performance.now(); // every other command changes the result
+  if (!KEEPS_RESULT.has(op)) state.action = { ...startAction(performance.now(), cause, status(ed)), op }; // every other command changes the result
   if (CHANGES_HANDLES.has(op)) {
     if (state.pendingCount === 0) state.pendingSince = performance.now();
     setPending(ed, state.pendingCount + 1);
@@ -376,11 +387,11 @@ function command(ed, op, content = {}) {
   ed.model.send({ op, ...content });
 }
 
-function commandSelected(ed, op) {
+function commandSelected(ed, op, cause = "click") {
   const i = selected(ed);
   if (i < 0 || i >= items(ed).length) return showLocal(ed, "select a handle first");
   if (op === "rectify_line" && items(ed)[i].kind !== "line") return showLocal(ed, "the selected handle is not a line");
-  command(ed, op, { index: i });
+  command(ed, op, { index: i }, cause);
 }
 
 function onMessage(ed, content, buffers) {
@@ -393,6 +404,9 @@ function onMessage(ed, content, buffers) {
     return;
   }
   const { state } = ed;
+  if (content && content.done !== undefined && state.action && state.action.op === content.done) {
+    state.action = actionOnDone(state.action, status(ed)); // a command that computed nothing waits for no image
+  }
   if (content && content.done !== undefined && CHANGES_HANDLES.has(content.done) && state.pendingCount > 0) {
     setPending(ed, state.pendingCount - 1);
     if (state.pendingCount === 0 && state.localNote.startsWith("one moment")) showLocal(ed, "");
@@ -406,12 +420,12 @@ function select(ed, i) {
   }
 }
 
-function deleteSelected(ed) {
+function deleteSelected(ed, cause = "click") {
   const i = selected(ed);
   if (i < 0 || i >= items(ed).length) return;
   const next = removeHandle(doc(ed), i);
   ed.model.set("selected", -1);
-  commit(ed, next);
+  commit(ed, next, cause);
 }
 
 function download(ed) {
@@ -508,12 +522,15 @@ function onImage(ed, name) {
 
 // A result is on screen once its image (when it changed) is decoded and drawn: then the
 // root's data-generation names the edit it answers, and the last edit's latency is taken.
+// The latency is the person's: from the click, key or mouse release (state.action) to the
+// first image newer than every edit the kernel had asked for then, drawn (status.js).
 async function onStatus(ed) {
   const { state, ui } = ed;
   state.localNote = "";
+  const s = status(ed);
+  if (s.state !== "idle") state.action = actionOnStatus(state.action, s, performance.now()).action;
   updateStatus(ed);
   draw(ed);
-  const s = status(ed);
   if (s.state !== "busy") state.dragSolve = 0; // the next solve of a drag may go
   if (s.state === "error") state.liveShown = false; // the last good result, not a frame of a drag that failed
   if (s.state !== "idle") return;
@@ -523,10 +540,13 @@ async function onStatus(ed) {
   await new Promise((resolve) => requestAnimationFrame(resolve));
   if (status(ed) !== s) return; // superseded meanwhile
   ui.root.dataset.generation = String(s.generation);
-  if (state.released !== null) {
-    state.latency = performance.now() - state.released;
-    ui.root.dataset.latencyMs = state.latency.toFixed(1);
-    state.released = null;
+  const action = state.action;
+  const { action: waiting, latency } = actionOnStatus(action, s, performance.now());
+  state.action = waiting;
+  if (latency !== null) {
+    state.latency = { ms: latency, cause: action.cause };
+    ui.root.dataset.latencyMs = latency.toFixed(1);
+    ui.root.dataset.latencyCause = action.cause;
   }
   updateStatus(ed);
 }
@@ -839,6 +859,64 @@ function dotAt(ed, p, lonlat, offsets, radius, fill, shape = "circle") {
 }
 
 // --- the status bar and the toolbar's state -------------------------------------------------
+// The status area, top to bottom: the headline (the result shown, or being computed, or the
+// error that kept the last good one, and the time from the person's action to its image)
+// followed by the quality line (the kernel's Summary.line()), the jobs' messages while they are current,
+// the autosave's notice, the editor's own note, then the warnings grouped by kind, three
+// groups and three warnings a group before a "show N more" toggle (status.js).
+function showStatusArea(ed, s) {
+  const { state, ui } = ed;
+  const message = ui.message;
+  const line = (cls, text) => el("div", { class: cls, title: text }, text);
+  // the headline and the quality figures in one paragraph: what matters first, no line spent on a break
+  const head = headline(s, s.state === "idle" ? state.latency : null);
+  let figures = "";
+  if (s.quality && s.state === "idle") figures = s.quality;
+  else if (s.fold_area > 0 && s.state === "idle") figures = `fold-over ${(100 * s.fold_area).toPrecision(2)}% of the sphere (magenta)`;
+  const top = el("div", { class: "ow-headline", title: figures ? `${head} · ${figures}` : head }, el("span", { class: "ow-headline-main" }, head));
+  if (figures) top.append(" · ", el("span", { class: "ow-quality" }, figures));
+  const rows = [top];
+  if (s.error && s.state !== "error") rows.push(line("ow-error-text", s.error));
+  for (const text of jobMessages(s)) rows.push(line("ow-job", text));
+  const video = videoStatusText(s.video);
+  if (video) rows.push(line("ow-job", video));
+  if (s.notice) rows.push(line("ow-notice", s.notice));
+  if (state.localNote) rows.push(line("ow-note", state.localNote));
+  rows.push(...warningRows(ed, s));
+  message.replaceChildren(...rows);
+  message.classList.toggle("ow-error", Boolean(s.error));
+  ui.root.dataset.statusLines = String(rows.length);
+}
+
+function warningRows(ed, s) {
+  const { unfolded } = ed.state;
+  const kinds = s.warning_kinds || [];
+  const view = warningView(s.warnings || [], kinds, unfolded);
+  const toggle = (label, onclick, title = "") =>
+    el("button", { class: "ow-toggle", type: "button", title, onclick: (e) => (e.stopPropagation(), onclick(), updateStatus(ed)) }, label);
+  const rows = [];
+  for (const g of view.groups) {
+    const all = (s.warnings || []).filter((_, i) => (kinds[i] || "conflicts") === g.kind);
+    const row = el("div", { class: "ow-warning", "data-kind": g.kind, title: all.join("\n") });
+    if (g.count === 1) row.append(el("span", { class: "ow-warning-text" }, `⚠ ${g.title}`));
+    else {
+      const flip = () => (unfolded.open.has(g.kind) ? unfolded.open.delete(g.kind) : unfolded.open.add(g.kind));
+      row.append(toggle(`${g.open ? "▾" : "▸"} ⚠ ${g.title}`, flip, g.open ? "fold them" : "show them"));
+    }
+    rows.push(row);
+    for (const w of g.items) rows.push(el("div", { class: "ow-warning ow-warning-item", title: w }, el("span", { class: "ow-warning-text" }, w)));
+    if (g.more > 0) rows.push(el("div", { class: "ow-warning-item" }, toggle(`show ${g.more} more`, () => unfolded.all.add(g.kind))));
+    else if (g.open && unfolded.all.has(g.kind) && g.count > 3) rows.push(el("div", { class: "ow-warning-item" }, toggle("show fewer", () => unfolded.all.delete(g.kind))));
+  }
+  // the other kinds' toggle ends the last row: no line of its own
+  const last = rows[rows.length - 1];
+  if (view.more > 0) last.append(toggle(`show ${view.more} more`, () => (unfolded.groups = true), "the other kinds of warnings"));
+  else if (unfolded.groups && groupCount(s) > 3) last.append(toggle("show fewer", () => (unfolded.groups = false)));
+  return rows;
+}
+
+const groupCount = (s) => new Set(s.warning_kinds || []).size;
+
 function updateStatus(ed) {
   const { state, ui, model } = ed;
   const s = status(ed);
@@ -847,23 +925,7 @@ function updateStatus(ed) {
   ui.root.dataset.state = s.state || "";
   ui.spinner.hidden = !busy && !detectRunning(s);
   ui.root.dataset.suggestions = String(suggestions(ed).length);
-  const parts = [];
-  if (busy) parts.push("computing...");
-  else if (s.state === "idle" && s.message) parts.push(`result ${s.message}`);
-  if (s.error) parts.push(s.error);
-  if (s.notice) parts.push(s.notice);
-  if (state.latency !== null && s.state === "idle") parts.push(`shown ${state.latency.toFixed(0)} ms after the edit`);
-  if (s.fold_area > 0) parts.push(`fold-over ${(100 * s.fold_area).toPrecision(2)}% of the sphere (magenta)`);
-  parts.push(...detectStatusText(s));
-  const video = videoStatusText(s.video);
-  if (video) parts.push(video);
-  if (state.localNote) parts.push(state.localNote);
-  const message = ui.message;
-  message.textContent = parts.join(" · ");
-  message.classList.toggle("ow-error", Boolean(s.error));
-  message.title = (s.warnings || []).join("\n");
-  if (s.quality && s.state === "idle") message.append(el("div", { class: "ow-quality" }, s.quality));
-  for (const w of s.warnings || []) message.append(el("div", { class: "ow-warning" }, `⚠ ${w}`));
+  showStatusArea(ed, s);
   const history = model.get("history") || {};
   const h = items(ed)[selected(ed)];
   const action = (name) => ui.toolbar.querySelector(`[data-action="${name}"]`);
@@ -935,17 +997,40 @@ function toggleHandles(ed) {
   draw(ed);
 }
 
-function toggleHelp(ed) {
-  ed.state.help = !ed.state.help;
-  ed.ui.helpBox.hidden = !ed.state.help;
+// The help closes with Esc, its × or a click anywhere outside it (the click does nothing else).
+function toggleHelp(ed, show = !ed.state.help) {
+  const { state, ui } = ed;
+  if (state.help === show) return;
+  state.help = show;
+  ui.helpBox.hidden = !show;
+  ui.root.dataset.help = String(show);
+  if (show) {
+    state.closeHelp = (e) => {
+      if (!ui.root.isConnected) return toggleHelp(ed, false);
+      const target = e.target instanceof Node ? e.target : null;
+      if (target && (ui.helpBox.contains(target) || ui.toolbar.querySelector('[data-action="help"]').contains(target))) return;
+      toggleHelp(ed, false);
+      if (target && ui.root.contains(target)) {
+        e.stopPropagation(); // the click that closes the help does nothing else in the editor
+        e.preventDefault();
+      }
+    };
+    window.addEventListener("pointerdown", state.closeHelp, true);
+  } else if (state.closeHelp) {
+    window.removeEventListener("pointerdown", state.closeHelp, true);
+    state.closeHelp = null;
+  }
 }
 
 // --- the pointer -------------------------------------------------------------------------------
 function wirePanes(ed) {
   for (const p of ed.ui.panes) {
-    p.canvas.addEventListener("pointerdown", (e) => onDown(ed, p, e));
-    p.canvas.addEventListener("pointermove", (e) => onMove(ed, p, e));
-    p.canvas.addEventListener("pointerup", (e) => onUp(ed, p, e));
+    for (const [name, fn] of [["pointerdown", onDown], ["pointermove", onMove], ["pointerup", onUp]]) {
+      p.canvas.addEventListener(name, (e) => {
+        fn(ed, p, e);
+        showCursor(ed, p, e);
+      });
+    }
     p.canvas.addEventListener("dblclick", (e) => {
       if (ed.state.drawing && ed.state.drawing.kind === "cage") {
         e.preventDefault();
@@ -956,6 +1041,25 @@ function wirePanes(ed) {
     p.canvas.addEventListener("contextmenu", (e) => e.preventDefault());
     p.canvas.addEventListener("auxclick", (e) => e.preventDefault());
   }
+}
+
+// The cursor says what a press would do (status.js): grab a control point, move a handle by
+// its arc, accept a suggestion, draw; grabbing while a drag goes on.
+function showCursor(ed, p, e) {
+  const { state } = ed;
+  const [x, y] = pointerAt(p, e);
+  const d = state.drag;
+  const at = { dragging: d ? d.type : null, tool: state.tool, pane: p.kind, space: state.space, hit: null, ring: false, suggestion: false };
+  if (!d && state.view && state.showHandles) {
+    at.hit = hit(ed, p, x, y);
+    const sel = selected(ed);
+    const point = items(ed)[sel] && items(ed)[sel].kind === "point";
+    at.ring = !at.hit && point && onRing(state.view, positions(ed, sel, p.kind)[0], reachOf(ed, sel), x, y);
+    at.suggestion = !at.hit && p.kind === "input" && Boolean(suggestionAt(state.view, suggestions(ed), x, y));
+  }
+  const cursor = cursorFor(at);
+  if (p.canvas.style.cursor !== cursor) p.canvas.style.cursor = cursor;
+  p.canvas.dataset.cursor = cursor; // for the browser tests
 }
 
 // The pointer's position on pane p, CSS pixels from its top left corner.
@@ -988,7 +1092,7 @@ function onDown(ed, p, e) {
     return;
   }
   if (p.kind === "input" && state.tool === "point") {
-    commit(ed, addHandle(doc(ed), newPoint(at)));
+    commit(ed, addHandle(doc(ed), newPoint(at)), "click");
     select(ed, items(ed).length - 1);
     return;
   }
@@ -1158,13 +1262,13 @@ function cageClick(ed, x, y, at, double) {
   draw(ed);
 }
 
-function closeCage(ed) {
+function closeCage(ed, cause = "click") {
   const dr = ed.state.drawing;
   if (!dr || dr.kind !== "cage") return;
   ed.state.drawing = null;
   const cage = newCage(dr.points);
   if (cage) {
-    commit(ed, addHandle(doc(ed), cage));
+    commit(ed, addHandle(doc(ed), cage), cause);
     select(ed, items(ed).length - 1);
   } else showLocal(ed, "a cage needs at least three vertices");
   draw(ed);
@@ -1248,19 +1352,19 @@ function onKey(ed, e) {
   const key = e.key;
   const mod = e.ctrlKey || e.metaKey;
   let used = true;
-  if (mod && !e.altKey && (key === "z" || key === "Z")) command(ed, e.shiftKey ? "redo" : "undo");
-  else if (mod && !e.altKey && (key === "y" || key === "Y")) command(ed, "redo");
+  if (mod && !e.altKey && (key === "z" || key === "Z")) command(ed, e.shiftKey ? "redo" : "undo", {}, "key");
+  else if (mod && !e.altKey && (key === "y" || key === "Y")) command(ed, "redo", {}, "key");
   else if (mod || e.altKey) used = false;
   else if (key === " ") ed.state.space = true;
   else if (key === "Escape") escape(ed);
-  else if (key === "Enter") closeCage(ed);
-  else if (key === "Delete" || key === "Backspace") deleteSelected(ed);
+  else if (key === "Enter") closeCage(ed, "key");
+  else if (key === "Delete" || key === "Backspace") deleteSelected(ed, "key");
   else if (key === "f" || key === "F") fit(ed);
   else if (key === "?") toggleHelp(ed);
   else if (key === "h" || key === "H") toggleHandles(ed);
-  else if (key === "a" || key === "A") command(ed, "rectify_all");
-  else if (key === "s" || key === "S") commandSelected(ed, "rectify_line");
-  else if (key === "r" || key === "R") commandSelected(ed, "reset");
+  else if (key === "a" || key === "A") command(ed, "rectify_all", {}, "key");
+  else if (key === "s" || key === "S") commandSelected(ed, "rectify_line", "key");
+  else if (key === "r" || key === "R") commandSelected(ed, "reset", "key");
   else {
     const tool = TOOLS.find(([, , k]) => k.toLowerCase() === key.toLowerCase());
     const stage = STAGES.find(([, , k]) => k.toLowerCase() === key.toLowerCase());
