@@ -129,6 +129,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
             "omniwidget._checks",
             "omniwidget._files",
             "omniwidget._timing",
+            "omniwidget._blas",
             "omniwidget._native",
             "omniwidget._numba_kernels",
         ),

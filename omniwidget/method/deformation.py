@@ -19,6 +19,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._blas import one_blas_thread
 from .._timing import Laps
 from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
 from ..sphere import coords
@@ -185,6 +186,7 @@ class Solved(Protocol):
     def controls(self) -> tuple[Control, ...]: ...
 
 
+@one_blas_thread
 def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None = None) -> Deformation:
     """The paper's method, from a handles document to the blended deformation of the sphere.
 

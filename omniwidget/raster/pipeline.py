@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import whole_number
+from .._blas import one_blas_thread
 from .._timing import Laps
 from ..document.handles import Handles
 from ..method.background import BACKGROUND
@@ -520,6 +521,7 @@ def _untangled(
     return coordinates, folds, patches
 
 
+@one_blas_thread
 def warp(
     image: NDArray,
     handles: Handles,
