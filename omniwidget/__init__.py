@@ -20,6 +20,7 @@ Examples
 """
 
 from ._version import __version__
+from .app.straighten import Straightened, Structure, find_structure, straighten
 from .data import sample_image, sample_path
 from .detect.level import Level, level, level_document
 from .detect.lines import Suggestion, suggest_lines, suggestions_to_handles
@@ -55,12 +56,15 @@ __all__ = [
     "Options",
     "PointHandle",
     "Result",
+    "Straightened",
+    "Structure",
     "Suggestion",
     "WarpResult",
     "__version__",
     "load_handles",
     "level",
     "level_document",
+    "find_structure",
     "lonlat_to_px",
     "lonlat_to_xyz",
     "px_to_lonlat",
@@ -69,6 +73,7 @@ __all__ = [
     "sample_image",
     "sample_path",
     "save_handles",
+    "straighten",
     "suggest_lines",
     "suggestions_to_handles",
     "to_equirectangular",

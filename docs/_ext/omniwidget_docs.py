@@ -7,6 +7,8 @@
   (``docs/gallery/NAME.json``) with :func:`omniwidget.warp` and shows it before (the handles
   drawn by :func:`omniwidget.io.draw.draw_handles`) and after. The images are made at build
   time and written into the build's ``_static/gallery/``; nothing generated is committed.
+- ``.. omniwidget-straighten:: NAME`` straightens a gallery panorama (:func:`omniwidget.straighten`):
+  before and after, the lines it used drawn;
 - ``.. omniwidget-suggest:: NAME`` finds the lines in a gallery panorama
   (:func:`omniwidget.detect.suggest_lines`) and levels it (:func:`omniwidget.detect.level`):
   the suggestions dashed on the input and the levelled panorama, made at build time into
@@ -274,6 +276,59 @@ class SuggestDirective(SphinxDirective):
         return [nodes.raw("", "\n".join(figures), format="html"), summary]
 
 
+def make_straighten_images(name: str, outdir: Path) -> dict[str, object]:
+    """Straighten the gallery panorama ``name`` (:func:`omniwidget.straighten`); write before and after JPEGs, the lines used drawn.
+
+    Returns the summary line and the time.
+    """
+    import cv2
+
+    import omniwidget as ow
+
+    image = ow.read_panorama(_gallery_image_path(name))
+    if image.shape[1] != GALLERY_WIDTH:
+        image = cv2.resize(image, (GALLERY_WIDTH, GALLERY_WIDTH // 2), interpolation=cv2.INTER_AREA)
+    start = time.perf_counter()
+    done = ow.straighten(image)
+    seconds = time.perf_counter() - start
+    outdir.mkdir(parents=True, exist_ok=True)
+    for label, picture in zip(("straighten_before", "straighten_after"), done.pictures(image), strict=True):
+        ok, data = cv2.imencode(".jpg", picture[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, 88])
+        if not ok:
+            raise RuntimeError(f"could not encode the gallery's {name} {label} image")
+        (outdir / f"{name}_{label}.jpg").write_bytes(data.tobytes())
+    return {"summary": done.summary(), "seconds": seconds}
+
+
+class StraightenDirective(SphinxDirective):
+    """``.. omniwidget-straighten:: NAME``: a gallery panorama before and after ``omniwidget straighten``, the lines used drawn."""
+
+    required_arguments = 1
+
+    def run(self) -> list[nodes.Node]:
+        """The nodes that stand for the directive."""
+        name = self.arguments[0]
+        image_file = _gallery_image_path(name)
+        if not image_file.exists():
+            raise self.error(f"omniwidget-straighten: {image_file} does not exist")
+        self.env.note_dependency(str(image_file))
+        builder = self.env.app.builder
+        if builder.format != "html":
+            return [nodes.paragraph(text=f"(the {name} straightened pictures are in the HTML build)")]
+        made = make_straighten_images(name, Path(builder.outdir) / "_static" / "gallery")
+        html = (
+            '<div class="omniwidget-gallery">'
+            f'<figure><img src="{_relative_static(self.env.docname, f"{name}_straighten_before.jpg")}" '
+            f'alt="{escape(name)}: the lines omniwidget straighten used, on the input" loading="lazy">'
+            "<figcaption>the input, the lines used drawn (verticals cyan, horizontals amber, others magenta)</figcaption></figure>"
+            f'<figure><img src="{_relative_static(self.env.docname, f"{name}_straighten_after.jpg")}" '
+            f'alt="{escape(name)} straightened, the lines where they are now" loading="lazy">'
+            "<figcaption><code>omniwidget straighten</code>'s result, each line where its pixels landed</figcaption></figure>"
+            "</div>"
+        )
+        return [nodes.raw("", html, format="html"), nodes.paragraph(text=f"{made['summary']} ({made['seconds']:.1f} s when this page was built)")]
+
+
 def _summary(obj: object) -> str:
     """The first sentence-paragraph of ``obj``'s docstring, on one line."""
     doc = inspect.getdoc(obj) or ""
@@ -519,6 +574,7 @@ def setup(app: Sphinx) -> dict[str, object]:
     app.connect("html-page-context", drop_widget_state, priority=400)
     app.add_directive("omniwidget-gallery", GalleryDirective)
     app.add_directive("omniwidget-suggest", SuggestDirective)
+    app.add_directive("omniwidget-straighten", StraightenDirective)
     app.add_directive("omniwidget-help", HelpDirective)
     app.add_directive("omniwidget-aliases", AliasesDirective)
     app.add_directive("omniwidget-module", ModuleDirective)

@@ -96,51 +96,18 @@ def _parser() -> argparse.ArgumentParser:
         help="warp panoramas by a handles file or a saved map",
         description="Warp one panorama, many frames alike or a 360° video (the map is computed once), by the handles in a JSON file or a saved map.",
     )
-    warp.add_argument(
-        "input", type=Path, nargs="+", help="equirectangular image(s) (2:1); several: frames of one size; or one 360° video (.mp4, .mov, .mkv, ...)"
+    _add_warp_arguments(warp, "warp")
+
+    straighten = sub.add_parser(
+        "straighten",
+        parents=[quiet],
+        help="level a panorama, find its structure and straighten it in one step",
+        description="Level the panorama (its vertical edges), find its structural lines (verticals, the edges where walls meet "
+        "floor and ceiling, long building edges; not texture such as tiles or cobbles), choose a set of them that do not cross, "
+        "and rectify them all; the handles used can be saved (-H) to change them in the editor. Images, frames and videos as "
+        "warp takes them (the lines found in the first image, or a video's middle frame).",
     )
-    source = warp.add_mutually_exclusive_group(required=True)
-    source.add_argument("-H", "--handles", type=Path, help="handles file (JSON, see the README)")
-    source.add_argument("--apply-map", type=Path, metavar="MAP", help="a map saved with --map (.npy) instead of handles")
-    warp.add_argument(
-        "-o",
-        "--output",
-        type=Path,
-        required=True,
-        help="output image (.png, .jpg, .tif, .npy); with several inputs a folder; for a video .mp4, .m4v or .mov",
-    )
-    warp.add_argument("--width", type=int, help="output width in pixels (even; default: the input's)")
-    warp.add_argument("--map", type=Path, help="also save the inverse map: float32 (H, W, 2) input [lon, lat] per output pixel, .npy")
-    warp.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
-    warp.add_argument("--workers", type=int, help="threads for many frames (default: CPUs + 1), or resampling a video's frames (default: 2)")
-    warp.add_argument(
-        "--dask",
-        metavar="SCHEDULER",
-        help="run each file (each time range of a video) as a task on a Dask cluster: the scheduler's address (tcp://host:8786) or its scheduler file (.json); "
-        'the paths must name the same files on every worker (the dask extra: pip install ".[dask]" in a clone)',
-    )
-    warp.add_argument(
-        "--fit",
-        choices=("pad", "stretch"),
-        help="make a non-2:1 input 2:1 first: pad adds black (transparent) rows above and below a 360°-wide panorama "
-        "cropped in latitude, stretch resizes it (default: refuse it)",
-    )
-    warp.add_argument("--progress", action="store_true", help="show the progress on stderr even when it is not a terminal")
-    video = warp.add_argument_group("video", "for a video input (INPUT.mp4 ... -o OUTPUT.mp4); the sound is copied as it is")
-    video.add_argument("--codec", help="video encoder (default: libx264; for 10-bit input libx265, else libx264 in 10 bits)")
-    video.add_argument("--crf", type=int, help="constant rate factor, lower is better and larger (default: 18 for libx264, 20 for libx265)")
-    video.add_argument("--preset", help="encoder speed preset, ultrafast to placebo (default: medium)")
-    video.add_argument(
-        "--spherical",
-        action="store_true",
-        help="write spherical-video (360°) metadata even when the input has none (the input's is always carried over)",
-    )
-    video.add_argument(
-        "--segment-seconds",
-        type=float,
-        metavar="SECONDS",
-        help="with --dask: cut each video into time ranges of about this length, one task each, joined without re-encoding (default: 60)",
-    )
+    _add_warp_arguments(straighten, "straighten")
 
     level = sub.add_parser(
         "level",
@@ -196,6 +163,62 @@ def _check_output(path: Path, suffixes: Sequence[str], what: str) -> None:
         raise ImageError(f"{path}: the {what} must end in {', '.join(suffixes)}")
     if not path.parent.is_dir():
         raise ImageError(f"{path}: the folder {path.parent} does not exist")
+
+
+def _add_warp_arguments(parser: argparse.ArgumentParser, command: str) -> None:
+    """The arguments ``warp`` and ``straighten`` share: inputs, output, sizes, frames and videos; and each one's own."""
+    parser.add_argument(
+        "input", type=Path, nargs="+", help="equirectangular image(s) (2:1); several: frames of one size; or one 360° video (.mp4, .mov, .mkv, ...)"
+    )
+    if command == "warp":
+        source = parser.add_mutually_exclusive_group(required=True)
+        source.add_argument("-H", "--handles", type=Path, help="handles file (JSON, see the README)")
+        source.add_argument("--apply-map", type=Path, metavar="MAP", help="a map saved with --map (.npy) instead of handles")
+    else:
+        parser.add_argument("-H", "--handles", type=Path, help="also save the handles used (JSON): open them in the editor to change them")
+        parser.add_argument("--max-lines", type=int, default=40, help="most lines straightened, the best of those found (default: 40)")
+        parser.add_argument("--no-level", action="store_true", help="leave the panorama's vertical as it is (default: level it first)")
+    parser.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        required=True,
+        help="output image (.png, .jpg, .tif, .npy); with several inputs a folder; for a video .mp4, .m4v or .mov",
+    )
+    parser.add_argument("--width", type=int, help="output width in pixels (even; default: the input's)")
+    parser.add_argument("--map", type=Path, help="also save the inverse map: float32 (H, W, 2) input [lon, lat] per output pixel, .npy")
+    parser.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
+    parser.add_argument("--workers", type=int, help="threads for many frames (default: CPUs + 1), or resampling a video's frames (default: 2)")
+    if command == "warp":
+        parser.add_argument(
+            "--dask",
+            metavar="SCHEDULER",
+            help="run each file (each time range of a video) as a task on a Dask cluster: the scheduler's address (tcp://host:8786) or its scheduler "
+            'file (.json); the paths must name the same files on every worker (the dask extra: pip install ".[dask]" in a clone)',
+        )
+    parser.add_argument(
+        "--fit",
+        choices=("pad", "stretch"),
+        help="make a non-2:1 input 2:1 first: pad adds black (transparent) rows above and below a 360°-wide panorama "
+        "cropped in latitude, stretch resizes it (default: refuse it)",
+    )
+    parser.add_argument("--progress", action="store_true", help="show the progress on stderr even when it is not a terminal")
+    video = parser.add_argument_group("video", "for a video input (INPUT.mp4 ... -o OUTPUT.mp4); the sound is copied as it is")
+    video.add_argument("--codec", help="video encoder (default: libx264; for 10-bit input libx265, else libx264 in 10 bits)")
+    video.add_argument("--crf", type=int, help="constant rate factor, lower is better and larger (default: 18 for libx264, 20 for libx265)")
+    video.add_argument("--preset", help="encoder speed preset, ultrafast to placebo (default: medium)")
+    video.add_argument(
+        "--spherical",
+        action="store_true",
+        help="write spherical-video (360°) metadata even when the input has none (the input's is always carried over)",
+    )
+    if command == "warp":
+        video.add_argument(
+            "--segment-seconds",
+            type=float,
+            metavar="SECONDS",
+            help="with --dask: cut each video into time ranges of about this length, one task each, joined without re-encoding (default: 60)",
+        )
 
 
 def _warp_quietly(*args: Any, **kwargs: Any) -> Result:
@@ -671,6 +694,53 @@ def _warp_video(args: argparse.Namespace) -> None:
     )
 
 
+def _cmd_straighten(args: argparse.Namespace) -> None:
+    """``omniwidget straighten``: level, find the structure, rectify it (:func:`omniwidget.straighten`), as ``warp`` writes its outputs.
+
+    The lines are found on the first input (a video's middle frame) at the detector's width,
+    and checked there by a warp (lines that give way are left out); the handles are then
+    warped onto every input as ``warp -H`` does, at full size, frames and videos included.
+    """
+    import tempfile
+
+    from ..detect import DETECT_WIDTH
+    from ..errors import ImageError
+    from ..io.images import read_panorama, write_bytes
+    from ..io.video import VideoReader, is_video_path
+    from .straighten import straighten
+
+    _quiet_opencv()
+    if args.max_lines < 1:
+        raise ImageError(f"--max-lines {args.max_lines}: at least one line")
+    if args.handles is not None:
+        _check_output(args.handles, (".json",), "handles file")
+    saved_handles, args.handles = args.handles, None
+    _refuse_overwrites(args, [("-o", args.output), ("--map", args.map), ("-H", saved_handles)])
+    first = args.input[0]
+    if is_video_path(first):
+        with VideoReader(first) as video:  # refuses what is no 360° video before any work
+            seen = video.read(len(video) // 2)
+    else:
+        seen = read_panorama(first, args.fit, width=DETECT_WIDTH)  # a JPEG twice as wide or more is decoded reduced
+    seen = seen if seen.shape[1] <= DETECT_WIDTH else _reduced(seen, DETECT_WIDTH)
+    done = straighten(seen, max_lines=args.max_lines, level=not args.no_level)
+    _say(args, f"{done.structure.summary()} (found {seen.shape[1]} wide)")
+    text = done.handles.to_json() + "\n"
+    with tempfile.TemporaryDirectory(prefix="omniwidget-straighten-") as folder:
+        args.handles, args.apply_map, args.dask, args.segment_seconds = Path(folder) / "handles.json", None, None, None
+        args.handles.write_text(text)
+        _cmd_warp(args)
+    if saved_handles is not None:
+        write_bytes(saved_handles, text.encode())
+
+
+def _reduced(frame: Any, width: int) -> Any:
+    """A frame resized to ``width`` by area averaging (the detector's input)."""
+    import cv2
+
+    return cv2.resize(frame, (width, width // 2), interpolation=cv2.INTER_AREA)
+
+
 def _cmd_level(args: argparse.Namespace) -> None:
     """``omniwidget level``: the camera's tilt from the vertical edges, undone by the levelling turn (``options.up``, as warp does)."""
     from ..detect import level
@@ -786,7 +856,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.started = time.perf_counter()
     try:
         with _sigterm_as_interrupt():
-            {"warp": _cmd_warp, "level": _cmd_level, "suggest": _cmd_suggest, "demo": _cmd_demo, "schema": _cmd_schema}[args.command](args)
+            commands = {"warp": _cmd_warp, "straighten": _cmd_straighten, "level": _cmd_level, "suggest": _cmd_suggest, "demo": _cmd_demo}
+            {**commands, "schema": _cmd_schema}[args.command](args)
     except OmniwidgetError as exc:
         print(f"omniwidget {args.command}: error: {_as_command_line(str(exc))}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -623,6 +623,7 @@ class EditingSession:
         # suggested lines and levelling, each in a worker of its own: never in the preview's way, nor one in the other's
         self._suggest_worker = Latest("omniwidget-editor-suggest")
         self._level_worker = Latest("omniwidget-editor-level")
+        self._straighten_worker = Latest("omniwidget-editor-straighten")
         self._measure = bool(quality)
         self._undo: list[dict] = []
         self._redo: list[dict] = []
@@ -663,7 +664,8 @@ class EditingSession:
         self._dropped: set[int] = set()
         self.suggestions: list[dict] = []
         self._levelling = False
-        self._detect_errors: dict[str, BaseException | None] = {"suggest": None, "level": None}  # for wait=True
+        self._straightening = False
+        self._detect_errors: dict[str, BaseException | None] = {"suggest": None, "level": None, "straighten": None}  # for wait=True
 
     def start(self) -> None:
         """Compute the first result (in the worker)."""
@@ -686,7 +688,7 @@ class EditingSession:
         """
         with self._lock:
             cleared = {}
-            for job in ("level", "save", "suggest"):
+            for job in ("level", "save", "suggest", "straighten"):
                 fields = self.status.get(job)
                 if not fields or fields.get("state") == "running" or not fields.get("message"):
                     continue
@@ -1115,7 +1117,7 @@ class EditingSession:
 
     def idle(self, timeout: float | None = 120.0) -> bool:
         """Block until the preview, the quality figures, the live drag's basis, Suggest lines and Level are all done; False on timeout."""
-        workers = (self._worker, self._quality, self._live, self._suggest_worker, self._level_worker)
+        workers = (self._worker, self._quality, self._live, self._suggest_worker, self._level_worker, self._straighten_worker)
         return all(worker.wait(timeout) for worker in workers)
 
     @property
@@ -1401,7 +1403,7 @@ class EditingSession:
             return self._downscaled(DETECT_WIDTH)
 
     def _set_detect(self, job: str, **fields: Any) -> None:
-        """``status[job]`` (``"suggest"`` or ``"level"``): its ``state`` ("running", "done" or "error") and ``message``."""
+        """``status[job]`` (``"suggest"``, ``"level"`` or ``"straighten"``): its ``state`` ("running", "done" or "error") and ``message``."""
         with self._lock:
             self._set_status(**{job: fields})
 
@@ -1577,6 +1579,61 @@ class EditingSession:
             self._levelling = False
             if answer:
                 self._on_message({"done": "level"}, [])
+
+    def straighten(self, *, wait: bool = False, answer: bool = False) -> None:
+        """Straighten the panorama in one step (:func:`omniwidget.straighten`) in the background: level, find the structure, rectify it.
+
+        The handles it used replace the document as one undoable edit (the lines, the
+        default mode and ``options.up``); the suggestions shown go. :attr:`status`
+        ``["straighten"]`` follows the job (``state`` and ``message``: what was levelled, how
+        many lines were straightened and why others were left out). The structure is found
+        on the panorama as the detector sees it (:data:`~omniwidget.detect.DETECT_WIDTH` wide
+        at most), and checked there by a warp.
+
+        Parameters
+        ----------
+        wait : bool
+            Block until the handles are loaded, and raise the job's error, for scripts.
+        answer : bool
+            Tell the front end ``{"done": "straighten"}`` once the handles changed (or did not).
+
+        Raises
+        ------
+        OmniwidgetError
+            If the panorama is being straightened already.
+        """
+        with self._lock:
+            if self._straightening:
+                raise OmniwidgetError("the panorama is being straightened already; one moment")
+            self._straightening = True
+        self._detect_errors["straighten"] = None
+        self._set_detect("straighten", state="running", message="straightening: levelling, finding the structure, rectifying it...")
+        self._straighten_worker.submit(lambda: self._straighten_job(answer))
+        self._wait_detect("straighten", self._straighten_worker, wait)
+
+    def _straighten_job(self, answer: bool) -> None:
+        from .straighten import straighten
+
+        start = time.perf_counter()
+        try:
+            try:
+                done = straighten(self._detect_source())
+                self.drop_suggestions()  # the structure replaces them
+                self.edit(done.handles)
+            except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
+                self._detect_errors["straighten"] = self.last_error = exc
+                reason = str(exc) if isinstance(exc, OmniwidgetError) else _exception_text(exc)
+                message = f"could not straighten the panorama: {reason}; the handles are unchanged"
+                self._set_detect("straighten", state="error", message=message)
+                self._report_error(message)
+                return
+            seconds = time.perf_counter() - start
+            message = f"straightened in {seconds:.1f} s: {done.structure.summary()} (undo to take it back)"
+            self._set_detect("straighten", state="done", message=message, lines=len(done.structure.used), dropped=len(done.structure.dropped))
+        finally:
+            self._straightening = False
+            if answer:
+                self._on_message({"done": "straighten"}, [])
 
     # --- edits -----------------------------------------------------------------------------
     def undo(self) -> bool:
@@ -1773,6 +1830,9 @@ class EditingSession:
             elif op == "level":
                 self.level(answer=True)
                 answered = True  # {"done": "level"} once the rotation is applied
+            elif op == "straighten":
+                self.straighten(answer=True)
+                answered = True  # {"done": "straighten"} once the handles are loaded
             elif op == "save":
                 path = self.save()
                 said = f"saved {len(self.document)} handles to {path}"

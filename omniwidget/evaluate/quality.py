@@ -73,6 +73,7 @@ __all__ = [
     "straightness",
     "summary",
     "tear",
+    "vertical_tilt",
 ]
 
 
@@ -1427,3 +1428,38 @@ def point_reach_profile(result: Any, index: int, distances: ArrayLike, direction
         "moved": np.degrees(np.arccos(np.clip(np.sum(q * p, axis=-1), -1.0, 1.0))),
         "det": np.linalg.det(j),
     }
+
+
+def vertical_tilt(inverse_map: ArrayLike, start: ArrayLike, end: ArrayLike, max_abs_lat: float = 70.0) -> float:
+    """How far a line that should come out vertical is from it: degrees from the zenith to the great circle of its output.
+
+    A vertical 3D edge is seen, in a level panorama, along a meridian: a great circle through
+    the poles. The line's input arc is sampled (within ``max_abs_lat``, where a meridian's
+    direction is well defined), each sample found in the output through ``inverse_map``
+    (:func:`forward_points`), and the great circle through the camera closest to them
+    fitted (the plane of least squares); its normal's latitude, 0 for a meridian, is the
+    tilt.
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, W, 2)
+        The map that placed the output's pixels (``Result.placed_map()``).
+    start, end : array_like, shape (2,)
+        The line's input ends, ``[lon, lat]`` degrees.
+    max_abs_lat : float
+        Samples nearer a pole than this (in the input) are left out, degrees.
+
+    Returns
+    -------
+    float
+        Degrees in ``[0, 90]``; NaN when fewer than 3 samples are found in the output.
+    """
+    m = check_inverse_map(inverse_map)
+    s = coords.geodesic(np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64), np.linspace(0.02, 0.98, 48))
+    s = s[np.abs(s[:, 1]) < max_abs_lat]
+    out = forward_points(m, s) if len(s) else np.empty((0, 2))
+    out = out[np.isfinite(out).all(axis=1)]
+    if len(out) < 3:
+        return math.nan
+    normal = np.linalg.svd(coords.lonlat_to_xyz(out), full_matrices=False)[2][-1]
+    return math.degrees(math.asin(min(1.0, abs(float(normal[2])))))

@@ -419,6 +419,10 @@ class Editor(anywidget.AnyWidget):
         """Level the panorama in the background: its tilt undone as one undoable edit (:meth:`EditingSession.level`)."""
         self._session.level(wait=wait)
 
+    def straighten(self, *, wait: bool = False) -> None:
+        """Level, find the structure and rectify it in the background: the handles used loaded as one undoable edit (:meth:`EditingSession.straighten`)."""
+        self._session.straighten(wait=wait)
+
     def undo(self) -> bool:
         """Go back one edit; False when there is none."""
         return self._session.undo()

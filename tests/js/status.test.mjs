@@ -129,6 +129,8 @@ test("the jobs' messages: each one the kernel still says, an error said once", (
   assert.deepEqual(jobMessages(s), ["saved 3 handles to room.handles.json"]);
   assert.deepEqual(jobMessages({ suggest: { state: "running", message: "finding straight edges..." } }), ["finding straight edges..."]);
   assert.deepEqual(jobMessages(undefined), []);
+  const straightened = "straightened in 2.4 s: levelled by pitch +0.13°, roll -0.04°; 27 lines straightened (undo to take it back)";
+  assert.deepEqual(jobMessages({ straighten: { state: "done", message: straightened } }), [straightened], "Straighten's message");
 });
 
 test("the cursor shows what a press would do", () => {

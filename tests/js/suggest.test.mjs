@@ -45,6 +45,7 @@ test("the spinner shows while Suggest lines or Level runs; the status line says 
   assert.equal(detectRunning({ suggest: { state: "running" } }), true);
   assert.equal(detectRunning({ suggest: { state: "done" }, level: { state: "running" } }), true);
   assert.equal(detectRunning({ suggest: { state: "done" }, level: { state: "error" } }), false);
+  assert.equal(detectRunning({ level: { state: "done" }, straighten: { state: "running" } }), true, "Straighten too");
   assert.deepEqual(detectStatusText({}), []);
   assert.deepEqual(detectStatusText({ suggest: { state: "done", message: "12 suggested lines" } }), ["12 suggested lines"]);
   const error = "could not level the panorama: too few vertical edges";

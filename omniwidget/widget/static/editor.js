@@ -83,7 +83,7 @@ const SHORTCUTS = [
 // an edit made meanwhile would start from the handles before it and undo it, so none starts
 // until the kernel says the command is done ("done" message, sent after any change of the handles).
 // Level's "done" comes once its rotation is applied, after it was found in the background.
-const CHANGES_HANDLES = new Set(["undo", "redo", "rectify_all", "rectify_line", "reset", "arrow", "load", "accept_suggestion", "accept_all", "level"]);
+const CHANGES_HANDLES = new Set(["undo", "redo", "rectify_all", "rectify_line", "reset", "arrow", "load", "accept_suggestion", "accept_all", "level", "straighten"]);
 // Commands that leave the result as it is (no latency is taken for them).
 const KEEPS_RESULT = new Set(["save", "save_video", "cancel_video", "suggest", "drop_suggestions"]);
 
@@ -290,6 +290,12 @@ function buildToolbar(ed, fileInput, spinner) {
       button("accept-all", "Accept all", "Add every suggested line as a line handle (one edit)", () => command(ed, "accept_all")),
       button("drop-suggestions", "Drop", "Drop the suggested lines (Esc)", () => command(ed, "drop_suggestions")),
       button("level", "Level", "Find how the camera was tilted, from the vertical edges, and undo it (one edit)", () => command(ed, "level")),
+      button(
+        "straighten",
+        "Straighten",
+        "Level, find the room's or the street's structure (verticals, wall-floor and wall-ceiling edges) and straighten it: the lines used become the handles (one edit)",
+        () => command(ed, "straighten"),
+      ),
     ),
     group(
       button("fit", "Fit", "Fit the panorama to the view (F)", () => fit(ed)),
@@ -941,6 +947,7 @@ function updateStatus(ed) {
   action("delete").disabled = !h;
   action("suggest").disabled = Boolean(s.suggest && s.suggest.state === "running");
   action("level").disabled = Boolean(s.level && s.level.state === "running");
+  action("straighten").disabled = Boolean(s.straighten && s.straighten.state === "running");
   action("accept-all").disabled = suggestions(ed).length === 0;
   action("drop-suggestions").disabled = suggestions(ed).length === 0;
   action("split").classList.toggle("ow-on", state.split);

@@ -6,7 +6,7 @@
 // `generation`), the quality line (`quality`, Summary.line(): the lines asked to be straight
 // measured, the ones kept as they are named apart), the warnings and their kinds
 // (`warnings`, `warning_kinds`, one kind per warning from its BlendWarning class), the jobs'
-// messages (`suggest`, `level`, `save`; the kernel clears a finished job's message when it
+// messages (`suggest`, `level`, `straighten`, `save`; the kernel clears a finished job's message when it
 // goes stale). This module only arranges them.
 
 /** Groups, and warnings in a group, shown before a "show N more" toggle. */
@@ -152,7 +152,7 @@ export function headline(status, latency) {
 }
 
 /**
- * The jobs' messages (Suggest lines, Level, Save, Save image), each while it runs or once
+ * The jobs' messages (Suggest lines, Level, Straighten, Save, Save image), each while it runs or once
  * done, until the kernel clears it; an error that is the status's error is said once, there.
  * @param {{suggest?: object, level?: object, save?: object, error?: string}} status
  * @returns {string[]}
@@ -160,7 +160,7 @@ export function headline(status, latency) {
 export function jobMessages(status) {
   const s = status || {};
   const out = [];
-  for (const name of ["suggest", "level", "save"]) {
+  for (const name of ["suggest", "level", "straighten", "save"]) {
     const j = s[name];
     if (j && j.message && (j.state !== "error" || j.message !== s.error)) out.push(j.message);
   }

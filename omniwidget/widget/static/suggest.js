@@ -67,12 +67,12 @@ export function suggestionAt(view, suggestions, x, y, tolerance = HIT_SUGGESTION
 }
 
 /**
- * Whether Suggest lines or Level is at work (the spinner shows).
- * @param {{suggest?: DetectJob, level?: DetectJob}} status the kernel's status
+ * Whether Suggest lines, Level or Straighten is at work (the spinner shows).
+ * @param {{suggest?: DetectJob, level?: DetectJob, straighten?: DetectJob}} status the kernel's status
  * @returns {boolean}
  */
 export function detectRunning(status) {
-  return ["suggest", "level"].some((job) => Boolean(status && status[job]) && status[job].state === "running");
+  return ["suggest", "level", "straighten"].some((job) => Boolean(status && status[job]) && status[job].state === "running");
 }
 
 /**
@@ -83,7 +83,7 @@ export function detectRunning(status) {
  */
 export function detectStatusText(status) {
   const parts = [];
-  for (const job of ["suggest", "level"]) {
+  for (const job of ["suggest", "level", "straighten"]) {
     const j = status && status[job];
     if (j && j.message && (j.state === "running" || j.state === "done" || (j.state === "error" && j.message !== status.error)))
       parts.push(j.message);
