@@ -27,6 +27,7 @@ from .detect.lines import Suggestion, suggest_lines, suggestions_to_handles
 from .document.handles import CageHandle, Handles, LineHandle, Options, PointHandle, load_handles, save_handles
 from .errors import HandlesError, ImageError, LevelError, OmniwidgetError
 from .io.images import read_image, read_panorama, to_equirectangular, write_image
+from .raster.perspective import PerspectiveView, view
 from .raster.pipeline import BlendWarning, Result, warp
 from .raster.warping import WarpResult, warp_moebius
 from .sphere.coords import lonlat_to_px, lonlat_to_xyz, px_to_lonlat, xyz_to_lonlat
@@ -54,6 +55,7 @@ __all__ = [
     "Moebius",
     "OmniwidgetError",
     "Options",
+    "PerspectiveView",
     "PointHandle",
     "Result",
     "Straightened",
@@ -77,6 +79,7 @@ __all__ = [
     "suggest_lines",
     "suggestions_to_handles",
     "to_equirectangular",
+    "view",
     "warp",
     "warp_moebius",
     "write_image",

@@ -148,6 +148,23 @@ def _parser() -> argparse.ArgumentParser:
         "-o", "--output-dir", type=Path, default=Path("omniwidget-demo"), help="folder for the pictures (default: ./omniwidget-demo)"
     )
 
+    view = sub.add_parser(
+        "view",
+        parents=[quiet],
+        help="write a perspective still of a panorama, as a 360° viewer shows it",
+        description="Render what a 360° viewer shows looking towards a direction: a rectilinear (perspective) still, "
+        "north up, by the camera of the editor's look-around view (omniwidget.view).",
+    )
+    view.add_argument("input", type=Path, help="equirectangular image (2:1)")
+    view.add_argument("-o", "--output", type=Path, required=True, help="the still (.png, .jpg, .tif, .webp, .bmp, .npy)")
+    view.add_argument("--yaw", type=float, default=0.0, help="longitude of the view's centre, degrees, east positive (default: 0)")
+    view.add_argument("--pitch", type=float, default=0.0, help="latitude of the view's centre, degrees in [-90, 90], up positive (default: 0)")
+    view.add_argument("--fov", type=float, default=90.0, help="horizontal field of view, degrees, more than 0 and less than 180 (default: 90)")
+    view.add_argument("--width", type=int, default=1280, help="width of the still in pixels (default: 1280)")
+    view.add_argument("--height", type=int, help="height of the still in pixels (default: the width x 9 / 16)")
+    view.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
+    view.add_argument("--fit", choices=("pad", "stretch"), help="make a non-2:1 input 2:1 first, as for warp (default: refuse it)")
+
     sub.add_parser(
         "schema",
         help="print the JSON Schema of the handles file",
@@ -840,6 +857,30 @@ def _cmd_demo(args: argparse.Namespace) -> None:
     )
 
 
+def _cmd_view(args: argparse.Namespace) -> None:
+    """``omniwidget view``: a perspective still of a panorama (:func:`omniwidget.raster.perspective.view`), the camera checked before any work."""
+    from ..errors import ImageError
+    from ..io.images import check_writable, encode_image, read_panorama, write_bytes
+    from ..raster.perspective import check_view, view
+
+    _quiet_opencv()
+    try:
+        yaw, pitch, fov = check_view(args.yaw, args.pitch, args.fov)
+    except ValueError as exc:
+        raise ImageError(f"--{exc}") from None
+    for name in ("width", "height"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            raise ImageError(f"--{name} {value}: at least one pixel")
+    _check_output(args.output, _IMAGE_SUFFIXES, "output image")
+    _refuse_overwrites(args, [("-o", args.output)])
+    image = read_panorama(args.input, args.fit)
+    check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
+    still = view(image, yaw=yaw, pitch=pitch, fov=fov, width=args.width, height=args.height, order=args.order)
+    write_bytes(args.output, encode_image(args.output, still.image))
+    _say(args, f"wrote {args.output} ({_size(still.image)}) looking at yaw {yaw:g}°, pitch {pitch:g}°, {fov:g}° across in {_elapsed(args)}")
+
+
 def _cmd_schema(args: argparse.Namespace) -> None:
     import json
 
@@ -857,7 +898,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with _sigterm_as_interrupt():
             commands = {"warp": _cmd_warp, "straighten": _cmd_straighten, "level": _cmd_level, "suggest": _cmd_suggest, "demo": _cmd_demo}
-            {**commands, "schema": _cmd_schema}[args.command](args)
+            {**commands, "view": _cmd_view, "schema": _cmd_schema}[args.command](args)
     except OmniwidgetError as exc:
         print(f"omniwidget {args.command}: error: {_as_command_line(str(exc))}", file=sys.stderr)
         return EXIT_BAD_INPUT

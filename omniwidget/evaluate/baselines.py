@@ -17,7 +17,8 @@ solve when the document asks for it); only the way the maps are combined differs
   together pull on each other's lines.
 - :func:`perspective`: a rectilinear (gnomonic) view (Fig. 2b): every straight line is
   straight, but it is a planar picture of less than a hemisphere, stretched towards its
-  edges.
+  edges. It is the toolkit's one perspective camera, :mod:`omniwidget.raster.perspective`
+  (``omniwidget view`` and the editor's look-around view use it too), named here as well.
 - :func:`content_preserving`: the content-preserving projection of Carroll, Agrawala and
   Agarwala 2009 ([10], Fig. 13), the paper's strongest rival, from
   :mod:`omniwidget.evaluate.content_preserving`: a mesh over the whole sphere optimised
@@ -41,20 +42,20 @@ import html
 import math
 import time
 import warnings
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._checks import check_panorama, whole_number
+from .._checks import whole_number
 from ..document.handles import CageHandle, Handles, Options, PointHandle
 from ..method.constraints import SAMPLES, Constraints, Control, build_constraints
 from ..raster.blend import NEGLIGIBLE, PixelWeights, blended_inverse
+from ..raster.perspective import PerspectiveView, perspective
 from ..raster.pipeline import BlendWarning, Result, warp
 from ..raster.warping import (
-    ORDERS,
     PAD,
     GridInverse,
     Order,
@@ -548,164 +549,6 @@ def gaussian_2017(
         return _displaced(lonlat, [m(lonlat) if w[:, j].max() > NEGLIGIBLE else None for j, m in enumerate(inverses)], w)
 
     return _finish(image, handles, constraints, inverse, width, order, timings, clock, "gaussian_2017", source_of, per_pixel)
-
-
-# --- 4. a perspective view -------------------------------------------------------------
-
-
-@dataclass(frozen=True, eq=False)
-class PerspectiveView:
-    """A rectilinear (gnomonic) view of a panorama: a planar picture, not a panorama.
-
-    The camera looks at ``center`` with the image's north up. Pixel ``(x, y)`` (column,
-    row; integers are pixel centres) shows the direction
-    ``f * forward + (x - cx) * east - (y - cy) * north``, with ``forward``, ``east`` and
-    ``north`` the unit vector and local frame of ``center``
-    (:func:`omniwidget.sphere.coords.local_frame`), ``(cx, cy) = ((width - 1) / 2,
-    (height - 1) / 2)`` and the focal length ``f = width / (2 tan(fov / 2))`` pixels. With
-    odd sizes the middle pixel shows ``center`` exactly.
-
-    Straightness on it: a plane through the viewpoint meets the image plane in a straight
-    line, so every great circle, and so every straight 3D line, is exactly straight here.
-    Measure it by projecting the line's samples with :meth:`project` and taking their
-    largest distance from the straight line through the ends, in pixels;
-    :func:`omniwidget.evaluate.quality.straightness` counts equirectangular pixels and does
-    not apply.
-
-    Attributes
-    ----------
-    image : ndarray, shape (height, width[, C])
-        The view, in the panorama's dtype and channels.
-    lonlat : ndarray of float64, shape (height, width, 2)
-        The inverse map: for each pixel centre, the panorama's ``[lon, lat]`` (degrees) it
-        shows.
-    center : (float, float)
-        ``[lon, lat]`` of the view's centre, degrees.
-    fov : float
-        Horizontal field of view, degrees.
-    """
-
-    image: NDArray
-    lonlat: NDArray[np.float64] = field(repr=False)
-    center: tuple[float, float]
-    fov: float
-
-    @property
-    def focal(self) -> float:
-        """The focal length in pixels, ``width / (2 tan(fov / 2))``."""
-        return self.lonlat.shape[1] / (2 * math.tan(math.radians(self.fov) / 2))
-
-    @property
-    def vertical_fov(self) -> float:
-        """The vertical field of view in degrees."""
-        return math.degrees(2 * math.atan(self.lonlat.shape[0] / (2 * self.focal)))
-
-    def inverse_map(self, dtype: type[np.floating] = np.float32) -> NDArray[np.floating]:
-        """For each pixel centre, the panorama's ``[lon, lat]`` (degrees) it shows, (height, width, 2).
-
-        Parameters
-        ----------
-        dtype : {numpy.float32, numpy.float64}
-        """
-        if dtype not in (np.float32, np.float64):
-            raise ValueError(f"dtype must be numpy.float32 or numpy.float64, got {dtype!r}")
-        return self.lonlat.astype(dtype)
-
-    def project(self, lonlat: ArrayLike) -> NDArray[np.float64]:
-        """Where directions appear in the view: pixel coordinates ``(x, y)``.
-
-        Parameters
-        ----------
-        lonlat : array_like, shape (..., 2)
-            ``[lon, lat]`` in degrees.
-
-        Returns
-        -------
-        ndarray of float64, shape (..., 2)
-            Column and row (integers are pixel centres; may lie outside the view); NaN for
-            directions on or behind the camera's plane, which the view cannot show.
-        """
-        forward, east, north = _camera(self.center)
-        xyz = coords.lonlat_to_xyz(lonlat)
-        depth = xyz @ forward
-        with np.errstate(divide="ignore", invalid="ignore"):
-            scale = np.where(depth > 0, self.focal / depth, np.nan)
-        height, width = self.lonlat.shape[:2]
-        return np.stack([(width - 1) / 2 + scale * (xyz @ east), (height - 1) / 2 - scale * (xyz @ north)], axis=-1)
-
-
-def _camera(center: tuple[float, float]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """The view's forward direction and its east and north image axes (unit vectors)."""
-    east, north = coords.local_frame(center)
-    return coords.lonlat_to_xyz(center), east, north
-
-
-def _center(value: object) -> tuple[float, float]:
-    if not isinstance(value, Iterable) or isinstance(value, str | bytes):
-        raise ValueError(f"center must be [lon, lat] in degrees, got {value!r}")
-    try:
-        lon, lat = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"center must be [lon, lat] in degrees, got {value!r}") from None
-    if not (math.isfinite(lon) and math.isfinite(lat)):
-        raise ValueError(f"center must be [lon, lat] in degrees, got {value!r}")
-    if not -180 <= lon <= 180:
-        raise ValueError(f"center[0] (longitude): {lon:g} is out of range [-180, 180]")
-    if not -90 <= lat <= 90:
-        raise ValueError(f"center[1] (latitude): {lat:g} is out of range [-90, 90]")
-    return lon, lat
-
-
-def perspective(image: NDArray, center: ArrayLike, fov: float, width: int, height: int, *, order: Order = "bilinear") -> PerspectiveView:
-    """A rectilinear (gnomonic, "perspective") view of a panorama (the paper's Fig. 2b).
-
-    Every straight line of the scene comes out straight, but shapes stretch towards the
-    edges as the field of view widens (a small shape at angle ``t`` from the centre is
-    drawn ``1 / cos(t)²`` times longer radially and ``1 / cos(t)`` times wider across), and
-    no view reaches 180°.
-
-    Parameters
-    ----------
-    image : ndarray, shape (H, W[, C])
-        Equirectangular panorama, ``W = 2 H``; uint8, uint16, float32 or float64; 1 to 4
-        channels.
-    center : array_like, shape (2,)
-        ``[lon, lat]`` in degrees the view looks at; north is up in the view.
-    fov : float
-        Horizontal field of view in degrees, in ``(0, 180)``.
-    width, height : int
-        Size of the view in pixels, positive.
-    order : {"nearest", "bilinear", "bicubic"}
-
-    Returns
-    -------
-    PerspectiveView
-
-    Raises
-    ------
-    ImageError
-        If ``image`` is not a panorama this toolkit reads.
-    ValueError
-        If ``center``, ``fov``, ``width``, ``height`` or ``order`` is out of range.
-    """
-    check_panorama(image)
-    centre = _center(center)
-    if isinstance(fov, bool) or not isinstance(fov, int | float | np.integer | np.floating) or not 0 < fov < 180:
-        raise ValueError(f"fov must be a number of degrees in (0, 180), got {fov!r}")
-    width = whole_number(width, "width", 1)
-    height = whole_number(height, "height", 1)
-    if order not in ORDERS:
-        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
-    forward, east, north = _camera(centre)
-    focal = width / (2 * math.tan(math.radians(fov) / 2))
-    x = np.arange(width) - (width - 1) / 2
-    y = np.arange(height) - (height - 1) / 2
-    rays = focal * forward + x[None, :, None] * east - y[:, None, None] * north
-    lonlat = coords.xyz_to_lonlat(rays)
-    coordinates = (coords.lonlat_to_px(lonlat, image.shape[1]) + PAD).astype(np.float32)
-    out = remap_panorama(image, coordinates, order)
-    lonlat.flags.writeable = False
-    return PerspectiveView(out, lonlat, centre, float(fov))
 
 
 # --- the comparison ---------------------------------------------------------------------

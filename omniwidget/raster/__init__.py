@@ -10,4 +10,6 @@
   exact enough.
 - :mod:`.fold` where the output is turned over.
 - :mod:`.live` a handle's share of eq. (2) for the editor's live drag.
+- :mod:`.perspective` the perspective camera: a rectilinear view of a panorama (``omniwidget view``,
+  the editor's look-around view, the paper's Fig. 2b).
 """
