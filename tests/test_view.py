@@ -199,3 +199,30 @@ def test_view_refuses_bad_files_in_one_line(pano, capsys):
     with pytest.raises(SystemExit) as info:  # argparse's own: not a number
         main(["view", str(pano / "in.png"), "-o", str(pano / "still.png"), "--yaw", "east"])
     assert info.value.code == 2 and capsys.readouterr().err.count("\n") == 1
+
+
+# --- the editor's camera (static/look.js) is this one ------------------------------------
+
+
+def test_the_editors_look_around_camera_is_this_one():
+    """look.js's rays (the editor's look-around view) are the rays ow.view renders, pixel for pixel, to 1e-9 degrees."""
+    import json
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    node = shutil.which("node")
+    if node is None:
+        pytest.skip("node is not installed")
+    look = (Path(__file__).resolve().parents[1] / "omniwidget" / "widget" / "static" / "look.js").as_uri()
+    cameras = [(30.0, 10.0, 100.0, 41, 31), (-179.5, -20.0, 70.0, 40, 30), (45.0, 90.0, 60.0, 33, 20), (120.0, -90.0, 120.0, 20, 33)]
+    script = (
+        f"import({json.dumps(look)}).then((l) => console.log(JSON.stringify({json.dumps(cameras)}.map(([yaw, pitch, fov, w, h]) =>"
+        " Array.from({length: h}, (_, y) => Array.from({length: w}, (_, x) => l.lonlatAt({yaw, pitch, fov}, w, h, x, y)))))))"
+    )
+    run = subprocess.run([node, "--input-type=module", "-e", script], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    image = np.zeros((8, 16, 3), np.uint8)
+    for (yaw, pitch, fov, width, height), rays in zip(cameras, json.loads(run.stdout), strict=True):
+        python = ow.view(image, yaw=yaw, pitch=pitch, fov=fov, width=width, height=height).lonlat
+        assert coords.angular_distance(np.array(rays), python).max() < 1e-9, (yaw, pitch, fov)

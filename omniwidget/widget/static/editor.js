@@ -9,7 +9,7 @@
 // handles' Möbius maps (moebius.js), a video's frame label and Save video's status line
 // (video.js), the suggested lines a click accepts (suggest.js), and what the status area
 // says, the warnings grouped and folded, the time from an action to its image and the
-// cursor (status.js). This file holds the
+// cursor (status.js), the look-around view's camera (look.js). This file holds the
 // DOM: the one state object, the canvases, the events, and the messages to and from the kernel.
 //
 // Drags happen here at display frame rate; only their end reaches the kernel, as a new
@@ -23,6 +23,7 @@ import { addHandle, dragPoints, moveOnInput, moveOnResult, newCage, newLine, new
 import { controlPoints, curves } from "./handles.js";
 import { HIT, hitTest, onCurve, onRing, pointDistance } from "./hit.js";
 import { createLive, MOVING_PIXELS } from "./live.js";
+import { createLook, dragLook, lonlatAt, lookText, START, zoomLook } from "./look.js";
 import { dragMaps, inverse } from "./moebius.js";
 import { circle, distance, geodesic } from "./sphere.js";
 import { actionOnDone, actionOnStatus, cursorFor, headline, jobMessages, startAction, warningView } from "./status.js";
@@ -164,6 +165,9 @@ function initialState() {
     liveLast: null,
     liveFine: false,
     liveRest: 0,
+    looking: false,
+    look: { ...START },
+    lookRenderer: undefined,
   };
 }
 
@@ -302,6 +306,9 @@ function buildToolbar(ed, fileInput, spinner) {
       button("split", "Split", "Compare: the input left of a slider, the result right of it", () => toggleLayer(ed, "split")),
       button("folds", "Folds", "Show where the result folds over", () => toggleLayer(ed, "showFolds")),
       button("handles", "Handles", "Show or hide the handles (H)", () => toggleHandles(ed)),
+      button("look", "Look around", "The result as a 360° viewer shows it: drag to look, the wheel to zoom (as omniwidget view draws it)", () =>
+        toggleLook(ed),
+      ),
     ),
     group(
       button("save", "Save", "Write the handles file next to the notebook", () => command(ed, "save")),
@@ -702,6 +709,7 @@ function drawPane(ed, p) {
   ctx.save();
   ctx.fillStyle = "#1e1e1e";
   ctx.fillRect(0, 0, p.w, p.h);
+  if (p.kind === "result" && state.looking) return drawLook(ed, p);
   const offsets = copies(state.view, p.w);
   const image = p.kind === "input" ? state.source : state.preview || state.source;
   if (image) drawImageCopies(ed, p, image, offsets);
@@ -713,6 +721,69 @@ function drawPane(ed, p) {
   if (state.showHandles) drawHandles(ed, p, offsets);
   ctx.restore();
   p.canvas.dataset.view = JSON.stringify({ x0: tx, y0: ty, w: k, h: k / 2 });
+}
+
+// --- the look-around view (look.js) ---------------------------------------------------------
+// The result pane shows the result through a perspective camera, the camera of `omniwidget
+// view`: drawn by WebGL2 on a canvas of its own at the pane's device pixels, then copied onto
+// the pane 1:1. Its look (yaw, pitch, fov in degrees) is on the pane's canvas as data-yaw,
+// data-pitch and data-fov.
+function toggleLook(ed, on = !ed.state.looking) {
+  const { state } = ed;
+  if (on && state.lookRenderer === undefined) {
+    try {
+      state.lookRenderer = createLook(document.createElement("canvas"));
+    } catch (err) {
+      console.warn("omniwidget: no look-around view:", err);
+      state.lookRenderer = null;
+    }
+  }
+  if (on && !state.lookRenderer) {
+    state.localNote = "Look around needs WebGL2, which this browser does not offer.";
+    updateStatus(ed);
+    return;
+  }
+  state.looking = on;
+  if (on && ed.model.get("stage") === "draw") setStage(ed, "transform"); // the result pane shown
+  const label = ed.ui.panes[1].box.querySelector(".ow-pane-label");
+  label.textContent = on ? "result: look around (drag to turn, wheel to zoom)" : "result: move control points";
+  updateStatus(ed);
+  draw(ed);
+}
+
+function drawLook(ed, p) {
+  const { state } = ed;
+  const image = state.preview || state.source;
+  const renderer = state.lookRenderer;
+  const [width, height] = [p.canvas.width, p.canvas.height];
+  if (image) renderer.setImage(image);
+  if (image && renderer.render(state.look, width, height)) {
+    p.ctx.setTransform(1, 0, 0, 1, 0, 0);
+    p.ctx.drawImage(renderer.canvas, 0, 0);
+  }
+  p.ctx.restore();
+  const { yaw, pitch, fov } = state.look;
+  Object.assign(p.canvas.dataset, { yaw: yaw.toFixed(4), pitch: pitch.toFixed(4), fov: fov.toFixed(4) });
+  p.canvas.title = `${lookText(state.look)}: drag to look, the wheel to zoom`;
+}
+
+function startLook(ed, p, e) {
+  const [x, y] = pointerAt(p, e);
+  p.canvas.setPointerCapture(e.pointerId);
+  ed.state.drag = { type: "look", x, y, look: { ...ed.state.look } };
+  e.preventDefault();
+}
+
+// A drag turns the view from where it started (look.js dragLook); the status bar names the position under the pointer.
+function moveLook(ed, p, x, y) {
+  const { state } = ed;
+  const d = state.drag;
+  if (d && d.type === "look") {
+    state.look = dragLook(d.look, x - d.x, y - d.y, p.w);
+    draw(ed);
+  }
+  const [lon, lat] = lonlatAt(state.look, p.w, p.h, x - 0.5, y - 0.5); // pixel centres at half pixels
+  ed.ui.cursorInfo.textContent = `lon ${lon.toFixed(2)}°, lat ${lat.toFixed(2)}°`;
 }
 
 function drawImageCopies(ed, p, image, offsets) {
@@ -953,6 +1024,7 @@ function updateStatus(ed) {
   action("split").classList.toggle("ow-on", state.split);
   action("folds").classList.toggle("ow-on", state.showFolds);
   action("handles").classList.toggle("ow-on", state.showHandles);
+  action("look").classList.toggle("ow-on", state.looking);
   for (const b of ui.toolbar.querySelectorAll("[data-tool]")) b.classList.toggle("ow-on", b.dataset.tool === state.tool);
   for (const b of ui.toolbar.querySelectorAll("[data-stage]")) b.classList.toggle("ow-on", b.dataset.stage === model.get("stage"));
 }
@@ -1056,8 +1128,9 @@ function showCursor(ed, p, e) {
   const { state } = ed;
   const [x, y] = pointerAt(p, e);
   const d = state.drag;
-  const at = { dragging: d ? d.type : null, tool: state.tool, pane: p.kind, space: state.space, hit: null, ring: false, suggestion: false };
-  if (!d && state.view && state.showHandles) {
+  const looking = p.kind === "result" && state.looking; // the look-around view: grab to turn it
+  const at = { dragging: d ? d.type : null, tool: state.tool, pane: p.kind, space: state.space || looking, hit: null, ring: false, suggestion: false };
+  if (!d && state.view && state.showHandles && !looking) {
     at.hit = hit(ed, p, x, y);
     const sel = selected(ed);
     const point = items(ed)[sel] && items(ed)[sel].kind === "point";
@@ -1084,6 +1157,10 @@ function hit(ed, p, x, y) {
 function onDown(ed, p, e) {
   const { state } = ed;
   ed.ui.root.focus({ preventScroll: true });
+  if (p.kind === "result" && state.looking) {
+    if (e.button === 0) startLook(ed, p, e);
+    return;
+  }
   if (e.button === 0 && !state.space && waitingForKernel(ed)) return;
   const [x, y] = pointerAt(p, e);
   const at = screenToLonLat(state.view, x, y);
@@ -1152,6 +1229,7 @@ function onDown(ed, p, e) {
 function onMove(ed, p, e) {
   const { state } = ed;
   const [x, y] = pointerAt(p, e);
+  if (p.kind === "result" && state.looking) return moveLook(ed, p, x, y);
   const at = screenToLonLat(state.view, x, y);
   state.cursor = at;
   ed.ui.cursorInfo.textContent = `lon ${at[0].toFixed(2)}°, lat ${at[1].toFixed(2)}°`;
@@ -1290,6 +1368,11 @@ function cancelDrawing(ed) {
 
 function onWheel(ed, p, e) {
   e.preventDefault();
+  if (p.kind === "result" && ed.state.looking) {
+    ed.state.look = zoomLook(ed.state.look, e.deltaY);
+    draw(ed);
+    return;
+  }
   const [x, y] = pointerAt(p, e);
   ed.state.view = zoomAt(ed.state.view, x, y, e.deltaY, p.w, p.h);
   ed.state.fitted = false;
