@@ -530,7 +530,7 @@ def test_half_resolution_map_is_the_map_of_the_half_size_grid():
 def test_spherical_metadata_round_trips_with_moov_first_and_last(clips, tmp_path):
     import av
 
-    from omniwidget.io.spherical import Spherical, read_spherical, write_spherical
+    from omniwidget.io.spherical import V1_UUID, Spherical, read_spherical, v1_box, write_spherical
 
     assert read_spherical(clips.plain) is None
     v1 = read_spherical(clips.v1)
@@ -545,7 +545,15 @@ def test_spherical_metadata_round_trips_with_moov_first_and_last(clips, tmp_path
         assert got is not None and (got.yaw, got.pitch, got.roll, got.source) == (12.5, -30.0, 4.25, "sv3d")
         (side,) = _spherical_side_data(path)
         assert (side["projection"], side["yaw"], side["pitch"]) == ("equirectangular", 12, -30)
-        assert path.stat().st_size == getattr(clips, name).stat().st_size + 13 + 91
+        assert path.stat().st_size == getattr(clips, name).stat().st_size + 13 + 91 + len(v1_box(posed))
+        # version 1's XMP too, once, for players that read only it
+        assert path.read_bytes().count(V1_UUID) == 1
+        xml = path.read_bytes().split(V1_UUID, 1)[1][: len(v1_box(posed)) - 24]
+        assert b"<GSpherical:ProjectionType>equirectangular</GSpherical:ProjectionType>" in xml
+        if shutil.which("exiftool") is not None:  # an independent reader of the V1 box
+            out = subprocess.run(["exiftool", "-j", "-XMP-GSpherical:all", str(path)], capture_output=True, text=True, check=True)
+            (tags,) = json.loads(out.stdout)
+            assert (tags["Spherical"], tags["ProjectionType"], tags["StereoMode"]) == (True, "equirectangular", "mono")
         with av.open(str(path)) as a, av.open(str(getattr(clips, name))) as b:  # the media data is where the index says
             assert all(np.array_equal(x.to_ndarray(), y.to_ndarray()) for x, y in zip(a.decode(video=0), b.decode(video=0), strict=True))
 

@@ -25,6 +25,7 @@ from ..errors import ImageError, OmniwidgetError
 from ..raster.warping import ORDERS, PAD, Order, remap_panorama
 from ..sphere import coords
 from .images import Fit, check_fits, read_panorama, write_image
+from .metadata import output_metadata, read_metadata
 
 __all__ = ["FrameReport", "load_map", "map_coordinates", "warp_frames"]
 
@@ -132,6 +133,8 @@ def warp_frames(
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     fit: Fit | None = None,
+    gpano: bool = True,
+    levelled: bool = False,
 ) -> FrameReport:
     """Warp many frames by one map: read, resample, write, a few frames at a time.
 
@@ -151,6 +154,11 @@ def warp_frames(
     fit : {"pad", "stretch"}, optional
         Make each frame 2:1 first (:func:`~omniwidget.io.images.to_equirectangular`); by
         default a frame that is not 2:1 fails.
+    gpano : bool
+        Write the Photo Sphere XMP into frames whose input has none (each frame's own
+        metadata is always carried: :func:`omniwidget.io.metadata.output_metadata`).
+    levelled : bool
+        The map levels the frames: their GPano pitch and roll are written 0.
 
     Returns
     -------
@@ -184,7 +192,9 @@ def warp_frames(
             frame = read_panorama(src, fit)
             if frame.shape[:2] != tuple(src_shape):
                 raise ImageError(f"{src}: the frame is {frame.shape[1]} x {frame.shape[0]}, the map is for {src_shape[1]} x {src_shape[0]}")
-            write_image(dst, remap_panorama(frame, coordinates, order))
+            warped = remap_panorama(frame, coordinates, order)
+            meta = output_metadata(read_metadata(src), warped.shape[1], warped.shape[0], gpano=gpano, levelled=levelled)
+            write_image(dst, warped, meta)
         except (OmniwidgetError, OSError) as exc:
             return str(exc)
         return None

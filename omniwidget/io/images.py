@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from .._checks import SUPPORTED_DTYPES, check_image, check_panorama, require_regular_file
 from .._files import atomic_write_bytes, commit, remove_leftovers, temporary_file
 from ..errors import ImageError, NotRegularFileError
-from . import large
+from . import large, metadata
 from .large import REDUCE_ROWS, ReadPlan, plan_read, read_reduced
 
 __all__ = [
@@ -49,6 +49,7 @@ __all__ = [
     "encode_image",
     "image_header",
     "memory_needed",
+    "place_gpano",
     "read_image",
     "read_panorama",
     "to_equirectangular",
@@ -76,14 +77,15 @@ _MAX_SIDE = {".jpg": 65535, ".jpeg": 65535, ".webp": 16383}
 # --- checks ------------------------------------------------------------------------------
 
 
-def to_equirectangular(image: NDArray, fit: Fit, name: str = "image") -> NDArray:
-    """Make an image twice as wide as high, by padding rows or by resizing.
+def to_equirectangular(image: NDArray, fit: Fit | None, name: str = "image", *, gpano: metadata.GPano | None = None) -> NDArray:
+    """Make an image twice as wide as high: where its Photo Sphere XMP places it, else by padding rows or by resizing.
 
     Parameters
     ----------
     image : ndarray, shape (H, W) or (H, W, C)
         1 to 4 channels; uint8, uint16, float32 or float64.
-    fit : {"pad", "stretch"}
+    fit : {"pad", "stretch"} or None
+        How to make it 2:1 when ``gpano`` does not place it (None: refuse an image that is not 2:1).
         ``"pad"``: for an image wider than 2:1 with an even width ``W``, taken to cover the
         full 360° of longitude and a band of latitudes centred on the horizon (a panorama
         cropped at the top and bottom): ``W / 2 - H`` rows of zeros are added, half above
@@ -96,6 +98,10 @@ def to_equirectangular(image: NDArray, fit: Fit, name: str = "image") -> NDArray
         that it spans the whole sphere whatever it showed.
     name : str
         What to call the image in messages (a file name, say).
+    gpano : GPano, optional
+        The file's Photo Sphere XMP (:func:`omniwidget.io.metadata.read_metadata`): an image
+        it says is a part of a sphere (``CroppedArea*``, ``FullPano*``) is put in its place
+        (:func:`place_gpano`), whatever ``fit`` says.
 
     Returns
     -------
@@ -119,11 +125,15 @@ def to_equirectangular(image: NDArray, fit: Fit, name: str = "image") -> NDArray
     >>> to_equirectangular(np.ones((3, 5), np.float32), "stretch").shape
     (3, 6)
     """
-    if fit not in FITS:
+    if fit is not None and fit not in FITS:
         raise ValueError(f'fit must be "pad" or "stretch", got {fit!r}')
     h, w = check_image(image, name)
+    if gpano is not None and not gpano.is_full and gpano.placement(w, h) is not None:
+        return place_gpano(image, gpano, name)
     if w == 2 * h:
         return image
+    if fit is None:
+        raise ImageError(f'{name}: {w} x {h} is not 2:1 and says nothing of where it lies on the sphere: make it 2:1 with fit="pad" or "stretch"')
     if fit == "pad":
         if w < 2 * h:
             raise ImageError(
@@ -143,6 +153,47 @@ def to_equirectangular(image: NDArray, fit: Fit, name: str = "image") -> NDArray
     interpolation = cv2.INTER_AREA if new_h < h else cv2.INTER_LINEAR
     out = cv2.resize(image, (new_w, new_h), interpolation=interpolation)
     return out.reshape(new_h, new_w, *image.shape[2:])  # OpenCV drops a single channel axis
+
+
+def place_gpano(image: NDArray, gpano: metadata.GPano, name: str = "image") -> NDArray:
+    """Put a part of a panorama where its Photo Sphere XMP says on the full sphere, zeros elsewhere.
+
+    Parameters
+    ----------
+    image : ndarray, shape (h, w) or (h, w, C)
+        The part, as the file shows it (a phone's 360 x 120° sweep, say).
+    gpano : GPano
+        Its ``FullPanoWidthPixels/HeightPixels`` and ``CroppedAreaLeftPixels/TopPixels``,
+        scaled to ``image``'s size when the file was resized after it was tagged
+        (:meth:`~omniwidget.io.metadata.GPano.placement`).
+    name : str
+        What to call the image in messages.
+
+    Returns
+    -------
+    ndarray, shape (H, 2 H) or (H, 2 H, C)
+        The full sphere: ``image`` at rows ``top..top+h`` and columns ``left..left+w``
+        (wrapping round the seam), zeros elsewhere: black, and transparent in an alpha
+        channel, as :func:`to_equirectangular`'s ``"pad"``.
+
+    Raises
+    ------
+    ImageError
+        If the XMP does not place the image on a 2:1 sphere in whole pixels.
+    """
+    h, w = check_image(image, name)
+    where = gpano.placement(w, h)
+    if where is None:
+        raise ImageError(
+            f"{name}: its Photo Sphere XMP (full {gpano.full_width} x {gpano.full_height}, cropped {gpano.cropped_width} x "
+            f"{gpano.cropped_height} at {gpano.left}, {gpano.top}) does not place a {w} x {h} image on a 2:1 sphere"
+        )
+    full_w, full_h, left, top = where
+    out = np.zeros((full_h, full_w, *image.shape[2:]), image.dtype)
+    first = min(w, full_w - left)
+    out[top : top + h, left : left + first] = image[:, :first]
+    out[top : top + h, : w - first] = image[:, first:]  # past the seam, from the left edge
+    return out
 
 
 # --- reading -----------------------------------------------------------------------------
@@ -195,16 +246,6 @@ def _tiff_ifd0(blob: bytes | memoryview | _FileBytes) -> dict[int, tuple[int, ..
             continue
         entries[tag] = struct.unpack(f"{e}{n}{sizes[kind]}", blob[start : start + size])
     return entries
-
-
-def _orientation(exif: bytes | None) -> int:
-    """The EXIF Orientation (1 to 8) in a TIFF-structured EXIF block; 1 if absent or malformed."""
-    if exif is None:
-        return 1
-    if exif[:6] == b"Exif\x00\x00":
-        exif = exif[6:]
-    values = (_tiff_ifd0(exif) or {}).get(0x0112, ())
-    return values[0] if values and 1 <= values[0] <= 8 else 1
 
 
 def _oriented(image: NDArray, orientation: int) -> NDArray:
@@ -891,7 +932,7 @@ def check_fits(path: str | os.PathLike[str], *, warp: bool = False, width: int |
     return header
 
 
-def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width: int | None = None) -> NDArray:
+def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width: int | None = None, place: bool = True) -> NDArray:
     """Read an image file as an array in RGB(A) order, keeping its sample depth.
 
     Parameters
@@ -911,6 +952,11 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width:
         the largest whole factor that keeps it ``width`` wide, an exact box average made
         strip by strip (:func:`~omniwidget.io.large.read_reduced`); the others are decoded
         whole.
+    place : bool
+        A part of a panorama whose Photo Sphere XMP says where it lies on the sphere
+        (``GPano:CroppedArea*``, ``FullPano*``: a phone's 360 x 120° sweep, say) is read
+        into its place on the full sphere, zeros elsewhere (:func:`place_gpano`). False:
+        the pixels as the file holds them.
 
     Returns
     -------
@@ -926,7 +972,7 @@ def read_image(path: str | os.PathLike[str], *, orientation: bool = True, width:
         than its header says), damaged (a PNG chunk failing its checksum) or too large for
         OpenCV.
     """
-    return _read_image(Path(path), orientation=orientation, width=width, warp=False)
+    return _read_image(Path(path), orientation=orientation, width=width, warp=False, place=place)
 
 
 def _reduction(
@@ -942,7 +988,9 @@ def _reduction(
     return plan
 
 
-def _read_image(path: Path, *, orientation: bool, width: int | None, warp: bool, reduce: bool = True, streamed: bool = False) -> NDArray:
+def _read_image(
+    path: Path, *, orientation: bool, width: int | None, warp: bool, reduce: bool = True, streamed: bool = False, place: bool = True
+) -> NDArray:
     import cv2
 
     path = Path(path)
@@ -951,7 +999,8 @@ def _read_image(path: Path, *, orientation: bool, width: int | None, warp: bool,
     header = image_header(path)  # refuses a FIFO or a device: the read would hang, or never end
     plan = _reduction(path, header, warp=warp, width=width, reduce=reduce, streamed=streamed)
     if plan.how == "reduced" and header is not None:
-        return read_reduced(path, header, plan.reduce)
+        reduced = read_reduced(path, header, plan.reduce)
+        return _placed(path, reduced, path if header.format in ("JPEG", "PNG", "WebP", "TIFF") else None) if place else reduced
     factor = plan.reduce
     try:
         data = path.read_bytes()
@@ -1003,8 +1052,21 @@ def _read_image(path: Path, *, orientation: bool, width: int | None, warp: bool,
         raise ImageError(f"{path}: not an image OpenCV can decode{hint}")
     image = _swap_red_blue(image)  # OpenCV's BGR(A) to RGB(A)
     if orientation and kind in ("JPEG", "PNG", "WebP"):
-        image = _oriented(image, _orientation(exif))
-    return image
+        image = _oriented(image, metadata.orientation(exif))  # Pillow reads the EXIF block
+    return _placed(path, image, data if kind in ("JPEG", "PNG", "WebP", "TIFF") else None) if place else image
+
+
+def _placed(path: Path, image: NDArray, data: bytes | Path | None) -> NDArray:
+    """``image`` put in its place on the full sphere when its file's Photo Sphere XMP says it is a part of one.
+
+    ``data``: the file's bytes (or the file) to read the XMP from; None for a format without one.
+    """
+    if data is None:
+        return image
+    found = metadata.read_metadata(data).gpano
+    if found is None or found.is_full:
+        return image
+    return place_gpano(image, found, str(path))
 
 
 # --- writing -----------------------------------------------------------------------------
@@ -1029,8 +1091,9 @@ def read_panorama(
     warp: bool = False,
     reduce: bool = True,
     streamed: bool = False,
+    place: bool = True,
 ) -> NDArray:
-    """Read an equirectangular panorama: :func:`read_image`, made 2:1 as ``fit`` says, then :func:`check_panorama`.
+    """Read an equirectangular panorama: :func:`read_image` (a part placed where its XMP says), made 2:1 as ``fit`` says, then :func:`check_panorama`.
 
     Parameters
     ----------
@@ -1050,6 +1113,9 @@ def read_panorama(
         The warp will be made in strips (:func:`memory_needed`): counted so. The caller
         reads a panorama that :func:`omniwidget.io.large.plan_read` leaves on disk with
         :func:`omniwidget.io.large.open_on_disk` instead.
+    place : bool
+        Put a part of a panorama in its place on the sphere as its Photo Sphere XMP says
+        (:func:`read_image`), before ``fit`` is looked at.
 
     Returns
     -------
@@ -1060,7 +1126,7 @@ def read_panorama(
     ImageError
         Naming the file and what is wrong with it.
     """
-    image = _read_image(Path(path), orientation=True, width=width, warp=warp, reduce=reduce, streamed=streamed)
+    image = _read_image(Path(path), orientation=True, width=width, warp=warp, reduce=reduce, streamed=streamed, place=place)
     if fit is not None:
         image = to_equirectangular(image, fit, str(path))
     return check_panorama(image, str(path))
@@ -1110,8 +1176,12 @@ def check_format(path: Path, image: NDArray) -> None:
         raise ImageError(f"{path}: JPEG has no alpha channel; write .png, .tif, .webp or .npy to keep it, or drop it (image[..., :-1])")
 
 
-def encode_image(path: Path, image: NDArray) -> bytes:
-    """The bytes of ``image`` in the format of ``path``'s suffix (checked by :func:`check_writable`)."""
+def encode_image(path: Path, image: NDArray, meta: metadata.Metadata | None = None) -> bytes:
+    """The bytes of ``image`` in the format of ``path``'s suffix (checked by :func:`check_writable`).
+
+    ``meta``: metadata added to the encoded bytes (:func:`omniwidget.io.metadata.with_metadata`:
+    JPEG, PNG and WebP; the pixels are the same bytes as without it).
+    """
     import cv2
 
     check_writable(path, image)
@@ -1130,7 +1200,7 @@ def encode_image(path: Path, image: NDArray) -> bytes:
         raise ImageError(f"{path}: OpenCV could not encode the image as {suffix} ({str(exc).strip().splitlines()[-1]})") from None
     if not ok:
         raise ImageError(f"{path}: OpenCV could not encode the image as {suffix}")
-    return encoded.tobytes()
+    return encoded.tobytes() if meta is None else metadata.with_metadata(encoded.tobytes(), meta)
 
 
 def write_bytes(path: Path, data: bytes) -> None:
@@ -1141,7 +1211,7 @@ def write_bytes(path: Path, data: bytes) -> None:
         raise ImageError(f"{path}: cannot write the file ({exc.strerror or exc})") from None
 
 
-def write_image(path: str | os.PathLike[str], image: NDArray) -> None:
+def write_image(path: str | os.PathLike[str], image: NDArray, meta: metadata.Metadata | None = None) -> None:
     """Write an RGB(A) or gray image whole, or not at all.
 
     Parameters
@@ -1152,6 +1222,9 @@ def write_image(path: str | os.PathLike[str], image: NDArray) -> None:
         alpha is written as RGBA (except to ``.npy``); JPEG, having no alpha, refuses alpha.
     image : ndarray, shape (H, W) or (H, W, C)
         RGB(A) order, 1 to 4 channels.
+    meta : Metadata, optional
+        EXIF, ICC profile and XMP to write with it (JPEG, PNG, WebP: :func:`encode_image`),
+        as :func:`omniwidget.io.metadata.output_metadata` makes them.
 
     Raises
     ------
@@ -1161,7 +1234,7 @@ def write_image(path: str | os.PathLike[str], image: NDArray) -> None:
         left as it was.
     """
     path = Path(path)
-    write_bytes(path, encode_image(path, image))
+    write_bytes(path, encode_image(path, image, meta))
 
 
 #: Suffixes :func:`write_image_strips` writes strip by strip (the others are gathered whole first).
@@ -1194,6 +1267,7 @@ def write_image_strips(
     strips: Iterable[NDArray],
     *,
     progress: Callable[[int], None] | None = None,
+    meta: metadata.Metadata | None = None,
 ) -> None:
     """Write an image given as strips of rows, whole or not at all, holding one strip at a time where the format allows.
 
@@ -1219,6 +1293,9 @@ def write_image_strips(
         Rows top to bottom, each ``(rows, W[, C])``; their rows must add up to ``H``.
     progress : callable, optional
         ``progress(rows_written)`` after each strip.
+    meta : Metadata, optional
+        Metadata written with it: JPEG, PNG and WebP as :func:`write_image`; TIFF its XMP
+        and ICC profile (tags 700 and 34675).
 
     Raises
     ------
@@ -1251,8 +1328,9 @@ def write_image_strips(
         return out
 
     if suffix not in STRIP_SUFFIXES:
-        write_image(path, fill(np.empty(shape, dtype)))
+        write_image(path, fill(np.empty(shape, dtype)), meta)
         return
+    meta = meta or metadata.Metadata()
     if suffix == ".npy":
         large.check_free_disk(path.parent, math.prod(shape) * dtype.itemsize, f"{path}: a {' x '.join(map(str, shape))} {dtype} array")
     remove_leftovers(path)
@@ -1261,13 +1339,13 @@ def write_image_strips(
         if suffix in (".npy", ".png"):
             with open(fd, "wb", closefd=False) as fh:
                 if suffix == ".png":
-                    large.write_png_strips(fh, shape, dtype, checked())
+                    large.write_png_strips(fh, shape, dtype, checked(), chunks=metadata.png_chunks(meta))
                 else:
                     np.lib.format.write_array_header_2_0(fh, {"descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False, "shape": shape})
                     for strip in checked():
                         fh.write(np.ascontiguousarray(strip).data)
         elif suffix in (".jpg", ".jpeg"):
-            large.write_jpeg_strips(tmp, shape, checked())
+            large.write_jpeg_strips(tmp, shape, checked(), segments=metadata.jpeg_segments(meta))
         else:
             import tifffile
 
@@ -1290,6 +1368,7 @@ def write_image_strips(
                 compression="zlib",
                 compressionargs={"level": 1},
                 maxworkers=min(os.cpu_count() or 1, 4),  # tiles deflated in threads
+                extratags=metadata.tiff_tags(meta),
             )
         commit(fd, tmp, path)
     except OSError as exc:

@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 
 from .._checks import SUPPORTED_DTYPES
 from ..errors import ImageError
+from . import metadata
 
 if TYPE_CHECKING:
     from .images import ImageHeader
@@ -394,7 +395,7 @@ def _png_chunk(fh: BinaryIO, kind: bytes, data: bytes) -> None:
     fh.write(struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data)))
 
 
-def write_png_strips(fh: BinaryIO, shape: tuple[int, ...], dtype: np.dtype, strips: Iterable[NDArray]) -> None:
+def write_png_strips(fh: BinaryIO, shape: tuple[int, ...], dtype: np.dtype, strips: Iterable[NDArray], *, chunks: bytes = b"") -> None:
     """Write a PNG whose rows come in strips, holding one strip: 8 or 16 bits, gray, gray+alpha, RGB or RGBA.
 
     Each row is filtered by PNG's "Up" filter (its difference from the row above) and the
@@ -409,6 +410,8 @@ def write_png_strips(fh: BinaryIO, shape: tuple[int, ...], dtype: np.dtype, stri
         uint8 or uint16.
     strips : iterable of ndarray
         Rows top to bottom, each ``(rows, W[, C])``.
+    chunks : bytes
+        Whole chunks written after IHDR (metadata: :func:`omniwidget.io.metadata.png_chunks`).
     """
     channels = shape[2] if len(shape) == 3 else 1
     dtype = np.dtype(dtype)
@@ -417,6 +420,7 @@ def write_png_strips(fh: BinaryIO, shape: tuple[int, ...], dtype: np.dtype, stri
     fh.write(b"\x89PNG\r\n\x1a\n")
     color = {1: 0, 2: 4, 3: 2, 4: 6}[channels]
     _png_chunk(fh, b"IHDR", struct.pack(">IIBBBBB", shape[1], shape[0], 8 * dtype.itemsize, color, 0, 0, 0))
+    fh.write(chunks)
     deflate = zlib.compressobj(PNG_LEVEL)
     above = np.zeros(shape[1] * channels * dtype.itemsize, np.uint8)
     for strip in strips:
@@ -448,7 +452,7 @@ def row_blocks(strips: Iterable[NDArray], rows: int) -> Iterator[NDArray]:
         yield np.concatenate(held)
 
 
-def write_jpeg_strips(path: str | os.PathLike[str], shape: tuple[int, ...], strips: Iterable[NDArray]) -> None:
+def write_jpeg_strips(path: str | os.PathLike[str], shape: tuple[int, ...], strips: Iterable[NDArray], *, segments: bytes = b"") -> None:
     """Write a JPEG (quality :data:`JPEG_QUALITY`, chroma 4:2:0 as OpenCV) whose rows come in strips, holding a few of them.
 
     The strips go into an uncompressed TIFF beside ``path`` (as they come), which libvips
@@ -462,6 +466,10 @@ def write_jpeg_strips(path: str | os.PathLike[str], shape: tuple[int, ...], stri
         ``(H, W)`` or ``(H, W, 3)``, uint8.
     strips : iterable of ndarray
         Rows top to bottom, uint8.
+    segments : bytes
+        Whole JPEG segments put after SOI and JFIF's APP0 (metadata:
+        :func:`omniwidget.io.metadata.jpeg_segments`): libvips' JPEG is copied once more
+        with them, block by block.
     """
     import pyvips
     import tifffile
@@ -477,9 +485,17 @@ def write_jpeg_strips(path: str | os.PathLike[str], shape: tuple[int, ...], stri
         photometric = "rgb" if channels == 3 else "minisblack"
         blocks = row_blocks(strips, TIFF_ROWS)
         tifffile.imwrite(name, blocks, shape=shape, dtype=np.uint8, photometric=photometric, rowsperstrip=TIFF_ROWS, bigtiff=True)
+        encoded = Path(name).with_suffix(".jpg") if segments else path
         try:
-            pyvips.Image.new_from_file(name, access="sequential").jpegsave(str(path), Q=JPEG_QUALITY, subsample_mode="on")
+            pyvips.Image.new_from_file(name, access="sequential").jpegsave(str(encoded), Q=JPEG_QUALITY, subsample_mode="on")
         except pyvips.Error as exc:
             raise ImageError(f"{path}: libvips could not encode the JPEG ({str(exc).strip().splitlines()[0]})") from None
+        if segments:
+            with open(encoded, "rb") as src, open(path, "wb") as dst:
+                head = src.read(1 << 16)
+                at = metadata.jpeg_metadata_offset(head)
+                dst.write(head[:at] + segments + head[at:])
+                shutil.copyfileobj(src, dst, 1 << 22)
     finally:
         Path(name).unlink(missing_ok=True)
+        Path(name).with_suffix(".jpg").unlink(missing_ok=True)

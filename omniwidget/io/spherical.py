@@ -10,8 +10,9 @@ both and shows them as the stream side data "Spherical Mapping" (``ffprobe -show
 
 FFmpeg's MP4 muxer writes ``sv3d`` only from stream side data set through its C API
 (``-strict unofficial``); PyAV exposes no way to set it. :func:`write_spherical` therefore
-writes the boxes itself into a finished file: it adds 13 + 91 bytes to the sample entry,
-grows the sizes of the boxes around it, and moves the media data's chunk offsets
+writes the boxes itself into a finished file: it adds 13 + 91 bytes to the sample entry
+and version 1's XMP ``uuid`` box to the video ``trak`` (some players read only version 1),
+grows the sizes of the boxes around them, and moves the media data's chunk offsets
 (``stco``, ``co64``) when ``moov`` comes before it. Only these standard boxes are touched.
 """
 
@@ -29,7 +30,7 @@ from typing import BinaryIO
 from .._checks import require_regular_file
 from ..errors import NotRegularFileError, VideoError
 
-__all__ = ["EQUIRECTANGULAR", "Spherical", "check_mp4_structure", "read_spherical", "spherical_boxes", "write_spherical"]
+__all__ = ["EQUIRECTANGULAR", "Spherical", "check_mp4_structure", "read_spherical", "spherical_boxes", "v1_box", "write_spherical"]
 
 #: Stereo modes of the ``st3d`` box, by their number.
 STEREO_MODES = ("mono", "top-bottom", "left-right", "custom")
@@ -361,6 +362,40 @@ def spherical_boxes(spherical: Spherical, metadata_source: str = "omniwidget") -
     return _full_box(b"st3d", bytes([stereo])) + _box(b"sv3d", svhd + _box(b"proj", prhd + equi))
 
 
+def v1_box(spherical: Spherical, software: str = "omniwidget") -> bytes:
+    """Version 1's ``uuid`` box: the ``<rdf:SphericalVideo>`` XMP of Google's Spherical Video RFC, for players that read only it.
+
+    Version 1 has no pose and gives a crop only in pixels: the projection, the stereo mode,
+    stitched and the software are written (version 2's boxes carry the rest).
+    """
+    stereo = spherical.stereo if spherical.stereo in ("mono", "top-bottom", "left-right") else "mono"
+    xml = (
+        '<?xml version="1.0"?><rdf:SphericalVideo xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#" '
+        'xmlns:GSpherical="http://ns.google.com/videos/1.0/spherical/">'
+        "<GSpherical:Spherical>true</GSpherical:Spherical><GSpherical:Stitched>true</GSpherical:Stitched>"
+        f"<GSpherical:StitchingSoftware>{software}</GSpherical:StitchingSoftware>"
+        "<GSpherical:ProjectionType>equirectangular</GSpherical:ProjectionType>"
+        f"<GSpherical:StereoMode>{stereo}</GSpherical:StereoMode></rdf:SphericalVideo>"
+    )
+    return _box(b"uuid", V1_UUID + xml.encode("utf-8"))
+
+
+def _replace_v1(moov: bytearray, spherical: Spherical) -> int:
+    """Put version 1's ``uuid`` box at the end of the first video ``trak`` of ``moov`` (held from byte 0), replacing any; the size change."""
+    moov_box = next(_boxes(moov, 0, len(moov)))
+    trak = next(_video_traks(bytes(moov), moov_box))
+    stale = [b for b in _boxes(moov, trak.start + trak.header, trak.end) if b.kind == b"uuid" and moov[b.start + b.header : b.start + b.header + 16] == V1_UUID]
+    for box in reversed(stale):
+        del moov[box.start : box.end]
+    removed = sum(b.end - b.start for b in stale)
+    new = v1_box(spherical)
+    moov[trak.end - removed : trak.end - removed] = new
+    delta = len(new) - removed
+    for box in (moov_box, trak):
+        _grow(moov, box, delta)
+    return delta
+
+
 def _grow(moov: bytearray, box: _Box, delta: int) -> None:
     """Add ``delta`` to the size field of ``box`` (32- or 64-bit)."""
     if box.header == 16:
@@ -398,11 +433,12 @@ def _shift_chunk_offsets(moov: bytearray, moov_box: _Box, after: int, delta: int
 
 
 def write_spherical(path: str | os.PathLike[str], spherical: Spherical = EQUIRECTANGULAR, *, in_place: bool = False) -> None:
-    """Write ``spherical`` as Spherical Video V2 boxes into an MP4 or QuickTime file's first video track.
+    """Write ``spherical`` as Spherical Video V2 boxes and V1 XMP into an MP4 or QuickTime file's first video track.
 
-    Any ``st3d`` and ``sv3d`` already in its sample entry are replaced; nothing else changes
-    but the sizes of the boxes around them and, when ``moov`` comes before the media data,
-    the chunk offsets.
+    Any ``st3d`` and ``sv3d`` already in its sample entry are replaced, and any version 1
+    ``uuid`` box of its ``trak`` (:func:`v1_box`: some players read only version 1);
+    nothing else changes but the sizes of the boxes around them and, when ``moov`` comes
+    before the media data, the chunk offsets.
 
     Parameters
     ----------
@@ -446,6 +482,7 @@ def write_spherical(path: str | os.PathLike[str], spherical: Spherical = EQUIREC
     delta = len(new) - removed
     for box in (moov_box, *entry_path):  # every box around the new ones grows (their starts are before the edit)
         _grow(moov, box, delta)
+    delta += _replace_v1(moov, spherical)
     moved = file_moov.end < max(b.end for b in top)  # media data after moov moves by delta
     if moved and delta:
         _shift_chunk_offsets(moov, _Box(b"moov", 0, moov_box.header, len(moov)), file_moov.end, delta)
