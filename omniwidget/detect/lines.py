@@ -32,8 +32,10 @@ from .._checks import check_panorama
 from ..document.handles import Handles, LineHandle, Options
 from ..errors import ImageError
 from ..sphere import coords
+from .structure import choose_structure
 
 __all__ = [
+    "KINDS",
     "Arc",
     "Suggestion",
     "View",
@@ -81,6 +83,8 @@ MIN_HEIGHT = 32
 DETECT_WIDTH = 2048
 #: Shortest detected image segment kept before lifting, in pixels of a view.
 MIN_SEGMENT_PX = 8.0
+#: What a suggested line is in 3D (:attr:`Suggestion.kind`).
+KINDS = ("vertical", "horizontal", "other")
 
 
 @dataclass(frozen=True)
@@ -98,6 +102,12 @@ class Suggestion:
     confidence : float
         In ``[0, 1]``: higher for longer, higher-contrast arcs whose whole extent the
         detector saw; the suggestions are sorted by it.
+    kind : {"vertical", "horizontal", "other"}
+        What the edge is in 3D (:func:`omniwidget.detect.structure.line_kinds`):
+        ``"vertical"`` when its great circle passes through the panorama's true vertical,
+        ``"horizontal"`` when it passes through one of the two dominant horizontal
+        vanishing directions (a room's or a street's walls), ``"other"`` otherwise, and
+        for suggestions made without looking (the default).
     """
 
     start: LonLat
@@ -105,6 +115,11 @@ class Suggestion:
     length: float
     contrast: float
     confidence: float
+    kind: str = "other"
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"kind must be one of {', '.join(map(repr, KINDS))}, got {self.kind!r}")
 
     def handle(self, id: str | None = None) -> LineHandle:
         """The line handle along this arc (rectified by eq. (4) unless the document says otherwise)."""
@@ -1058,14 +1073,22 @@ def suggest_lines(
     min_contrast: float = 0.04,
     detector: str = "lsd",
     views: Sequence[View] | None = None,
+    structure: bool = True,
+    up: Sequence[float] | None = None,
 ) -> list[Suggestion]:
-    """Suggest line handles along the straight 3D edges seen in a panorama.
+    """Suggest line handles along the straight 3D edges seen in a panorama: the structure first.
 
     Segments are detected in six overlapping perspective views (:func:`cube_views`),
     lifted to great-circle arcs and merged across views into one arc per edge
     (:func:`merge_arcs`); arcs shorter than ``min_length`` or fainter than
     ``min_contrast`` are dropped and the rest ranked by confidence (length, contrast and
-    how much of the arc the detector saw).
+    how much of the arc the detector saw). With ``structure`` (the default) a consistent
+    set of the scene's structure is then chosen among them
+    (:func:`omniwidget.detect.structure.choose_structure`): each line is given its
+    :attr:`~Suggestion.kind`, vertical and horizontal lines rank before other ones, and
+    texture (tiles, cobbles, grid paint, mullions: lines crossed more than they bound, or
+    dense families of parallel lines), lines crossing a better one and lines running close
+    beside a better one are left out, so that the lines can be rectified all at once.
 
     Parameters
     ----------
@@ -1082,6 +1105,15 @@ def suggest_lines(
         The 2D segment detector (:func:`detect_segments`).
     views : sequence of View, optional
         The perspective views; :func:`cube_views` of the image's width by default.
+    structure : bool
+        Choose the consistent structural set (``max_lines`` counts what is kept). False
+        gives every line found, ranked by confidence alone and of kind ``"other"``: what
+        :func:`omniwidget.detect.level` looks among (it needs every vertical).
+    up : (float, float), optional
+        ``[lon, lat]`` degrees of the true vertical (:attr:`omniwidget.detect.Level.up`),
+        for ``structure``. By default it is found from the lines as
+        :func:`~omniwidget.detect.level` finds it, and taken as the zenith (right for a
+        level camera) when too few vertical edges are found.
 
     Returns
     -------
@@ -1119,6 +1151,10 @@ def suggest_lines(
             )
         )
     out.sort(key=lambda s: (-s.confidence, -s.length))
+    if structure:
+        width = min(int(np.asarray(image).shape[1]), DETECT_WIDTH)  # the width the lines were found at
+        chosen = choose_structure(out, up, width=width, max_lines=None if max_lines is None else int(max_lines), image=image)
+        return list(chosen.kept)
     return out if max_lines is None else out[: int(max_lines)]
 
 
