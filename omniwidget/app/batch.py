@@ -355,6 +355,7 @@ def _coordinates(recipe: _Recipe, src_width: int) -> tuple[NDArray[np.float32], 
 def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[float, float, tuple[str, ...]]:
     """Read ``src``, warp it, write ``dst`` whole; ``(seconds, map seconds, warnings)``. Raises on any failure."""
     from ..io.images import read_panorama, write_image
+    from ..io.metadata import output_metadata, read_metadata
     from ..raster.warping import remap_panorama
 
     start = time.perf_counter()
@@ -364,7 +365,10 @@ def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[
     out = remap_panorama(frame, coordinates, recipe.order)
     if make_folder:
         target.parent.mkdir(exist_ok=True)
-    write_image(target, out)  # what a killed attempt left beside it is removed first (omniwidget._files)
+    # the input's metadata brought up to date, as omniwidget warp writes it (issue 34; --no-gpano is not sent to the workers)
+    levelled = recipe.handles is not None and recipe.handles.options.up is not None
+    meta = output_metadata(read_metadata(source), out.shape[1], out.shape[0], levelled=levelled)
+    write_image(target, out, meta)  # what a killed attempt left beside it is removed first (omniwidget._files)
     return time.perf_counter() - start, map_seconds, warnings
 
 

@@ -170,7 +170,36 @@ def _parser() -> argparse.ArgumentParser:
         help="print the JSON Schema of the handles file",
         description="Print the JSON Schema (draft 2020-12) of the handles file, for editors and other programs that write one.",
     )
+    for name in ("warp", "straighten", "level"):  # what writes panoramas: their metadata's flags
+        if name in sub.choices:
+            _add_metadata_arguments(sub.choices[name], name)
     return parser
+
+
+def _add_metadata_arguments(parser: argparse.ArgumentParser, command: str) -> None:
+    """``--no-gpano`` (and ``level``'s ``--pose-only``): the outputs' Photo Sphere XMP."""
+    parser.add_argument(
+        "--no-gpano",
+        action="store_true",
+        help="write no Photo Sphere XMP (GPano) into outputs whose input has none (by default it is written: the output is a whole "
+        "equirectangular sphere); an input's own is always kept and brought up to date",
+    )
+    if command == "level":
+        parser.add_argument(
+            "--pose-only",
+            action="store_true",
+            help="do not resample: copy the input's bytes with the pitch and roll found written as its GPano pose "
+            "(PosePitchDegrees, PoseRollDegrees), which viewers such as Pannellum undo on display (JPEG, PNG or WebP; "
+            "the output in the input's format)",
+        )
+
+
+def _output_metadata(args: argparse.Namespace, source: Path, shape: tuple[int, ...], handles: Any = None, levelled: bool = False) -> Any:
+    """The metadata an output of ``shape`` made from ``source`` carries (:func:`omniwidget.io.metadata.output_metadata`)."""
+    from ..io.metadata import output_metadata, read_metadata
+
+    levelled = levelled or (handles is not None and handles.options.up is not None)
+    return output_metadata(read_metadata(source), shape[1], shape[0], gpano=not args.no_gpano, levelled=levelled)
 
 
 def _check_output(path: Path, suffixes: Sequence[str], what: str) -> None:
@@ -382,7 +411,7 @@ def _warp_one(args: argparse.Namespace) -> None:
     if (args.width or image.shape[1]) > STREAM_WIDTH:  # a format whose header does not say its size
         _warp_in_strips(args, source, handles, image)
         return
-    result, outputs = _warped_outputs(args, image, handles)
+    result, outputs = _warped_outputs(args, image, handles, source)
     for path, data in outputs:
         write_bytes(path, data)
     _say(args, f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; {_headline(result)}")
@@ -425,7 +454,8 @@ def _warp_in_strips(args: argparse.Namespace, source: Path, handles: Any, image:
         height, width = made.shape[:2]
         show = args.progress or (sys.stderr.isatty() and not args.quiet)
         progress = (lambda rows: _progress_bar(rows, height, "rows")) if show else None
-        write_image_strips(args.output, made.shape, made.dtype, made.image_strips(), progress=progress)
+        meta = _output_metadata(args, source, made.shape, handles)
+        write_image_strips(args.output, made.shape, made.dtype, made.image_strips(), progress=progress, meta=meta)
         written = [args.output]
         if args.map is not None:
             write_image_strips(args.map, (height, width, 2), np.float32, made.map_strips())
@@ -440,13 +470,17 @@ def _written(outputs: Sequence[tuple[Path, bytes]]) -> str:
     return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 
-def _warped_outputs(args: argparse.Namespace, image: Any, handles: Any) -> tuple[Result, list[tuple[Path, bytes]]]:
-    """``image`` warped by ``handles``, and the output image (with ``--map`` the inverse map too) encoded, not yet written."""
+def _warped_outputs(args: argparse.Namespace, image: Any, handles: Any, source: Path | None = None) -> tuple[Result, list[tuple[Path, bytes]]]:
+    """``image`` warped by ``handles``, and the output image (with ``--map`` the inverse map too) encoded, not yet written.
+
+    ``source``: the file ``image`` was read from, whose metadata the output carries (brought up to date).
+    """
     from ..io.images import encode_image
 
     result = _warp_quietly(image, handles, width=args.width, order=args.order)
     # all encoded before any is written: a failure leaves no output at all
-    outputs = [(args.output, encode_image(args.output, result.image))]
+    meta = _output_metadata(args, source, result.image.shape, handles) if source is not None else None
+    outputs = [(args.output, encode_image(args.output, result.image, meta))]
     if args.map is not None:
         outputs.append((args.map, encode_image(args.map, result.inverse_map())))  # .npy: the float32 array as it is
     return result, outputs
@@ -512,7 +546,16 @@ def _warp_frames(args: argparse.Namespace) -> None:
         args.output.mkdir(exist_ok=True)
     progress = _progress_bar if len(outputs) > 1 and (args.progress or (sys.stderr.isatty() and not args.quiet)) else None
     report = warp_frames(
-        args.input, outputs, coordinates, first.shape[:2], order=args.order, workers=args.workers, progress=progress, fit=args.fit
+        args.input,
+        outputs,
+        coordinates,
+        first.shape[:2],
+        order=args.order,
+        workers=args.workers,
+        progress=progress,
+        fit=args.fit,
+        gpano=not args.no_gpano,
+        levelled=handles is not None and handles.options.up is not None,
     )
     h, w = coordinates.shape[:2]
     where = str(outputs[0]) if len(outputs) == 1 else f"{args.output}{'' if str(args.output).endswith('/') else '/'}"
@@ -771,11 +814,16 @@ def _cmd_level(args: argparse.Namespace) -> None:
     _refuse_overwrites(args, [("-o", args.output), ("--map", args.map), ("-H", args.handles)])
     if args.width is not None and (args.width < 2 or args.width % 2):
         raise ImageError(f"--width {args.width}: the width must be even and at least 2")
+    if args.pose_only:
+        _check_pose_only(args)
     image = read_panorama(args.input, args.fit, width=args.width, warp=True)
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
     found = level(image)  # too few vertical edges: a LevelError, one line, nothing written
     handles = found.handles()
-    result, outputs = _warped_outputs(args, image, handles)
+    if args.pose_only:
+        _write_pose(args, found, handles)
+        return
+    result, outputs = _warped_outputs(args, image, handles, args.input)
     if args.handles is not None:
         outputs.append((args.handles, (handles.to_json() + "\n").encode()))
     for path, data in outputs:
@@ -784,6 +832,53 @@ def _cmd_level(args: argparse.Namespace) -> None:
         args,
         f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; levelled by pitch {found.pitch:+.2f}°, "
         f"roll {found.roll:+.2f}° (tilt {found.tilt:.2f}°) from {len(found.edges)} vertical edges; {_headline(result)}",
+    )
+
+
+def _check_pose_only(args: argparse.Namespace) -> None:
+    """``level --pose-only`` refused before any work where it cannot be: options that resample, another format."""
+    from ..errors import ImageError
+    from ..io.images import image_header
+
+    for name in ("map", "width", "fit"):
+        if getattr(args, name) is not None:
+            raise ImageError(f"--pose-only writes no pixels: --{name} has no meaning with it")
+    header = image_header(args.input)
+    kind = header.format if header is not None else None
+    if kind not in ("JPEG", "PNG", "WebP"):
+        raise ImageError(f"{args.input}: --pose-only writes the pose into a JPEG, PNG or WebP file; this is {kind or 'neither'}")
+    suffixes = {"JPEG": (".jpg", ".jpeg"), "PNG": (".png",), "WebP": (".webp",)}[kind]
+    if args.output.suffix.lower() not in suffixes:
+        raise ImageError(f"{args.output}: --pose-only copies the {kind} input as it is; name the output {' or '.join(suffixes)}")
+
+
+def _write_pose(args: argparse.Namespace, found: Any, handles: Any) -> None:
+    """``level --pose-only``: the input's bytes, its XMP's GPano pose set to the pitch and roll found (nothing resampled)."""
+    from dataclasses import replace
+
+    from ..io.images import image_header, write_bytes
+    from ..io.metadata import Pose, output_metadata, read_metadata, replace_xmp, with_xmp
+
+    data = args.input.read_bytes()
+    header = image_header(args.input)
+    width, height = (header.width, header.height) if header is not None else (0, 0)
+    meta = read_metadata(data)
+    old = meta.gpano
+    angles = found.pose()
+    pose = Pose(pitch=angles["PosePitchDegrees"], roll=angles["PoseRollDegrees"])
+    if old is not None and old.full_width > 0:  # its own geometry kept (a part of a sphere stays one), only the pose changes
+        xmp = replace_xmp(meta.xmp, replace(old, pose=Pose(old.pose.heading, pose.pitch, pose.roll)))
+    else:
+        xmp = output_metadata(meta, width, height, gpano=True, pose=pose).xmp or b""
+    outputs = [(args.output, with_xmp(data, xmp))]
+    if args.handles is not None:
+        outputs.append((args.handles, (handles.to_json() + "\n").encode()))
+    for path, out in outputs:
+        write_bytes(path, out)
+    _say(
+        args,
+        f"wrote {_written(outputs)} (the input's pixels, not resampled) in {_elapsed(args)}; its GPano pose: pitch {found.pitch:+.2f}°, "
+        f"roll {found.roll:+.2f}° (tilt {found.tilt:.2f}°) from {len(found.edges)} vertical edges",
     )
 
 

@@ -40,6 +40,7 @@ from ..document.handles import CageHandle, Handles, LineHandle, Options, PointHa
 from ..errors import HandlesError, ImageError, NotRegularFileError, OmniwidgetError, VideoError
 from ..io.draw import display_rgb
 from ..io.images import check_format, check_panorama, image_header, read_image, write_image
+from ..io.metadata import Metadata, output_metadata, read_metadata
 from ..sphere import coords
 from ._latest import Latest
 
@@ -1136,7 +1137,7 @@ class EditingSession:
         self._schedule(lambda generation: self._compute(doc, key, generation, full=True))
 
     # --- save image ---------------------------------------------------------------------------
-    def save_image(self, path: str | os.PathLike[str] | None = None) -> Path:
+    def save_image(self, path: str | os.PathLike[str] | None = None, *, gpano: bool = True) -> Path:
         """Write the full-size result of the current handles (whole or not at all); return where.
 
         Parameters
@@ -1148,6 +1149,11 @@ class EditingSession:
             hold the result (alpha in a JPEG, say); in the working folder as
             ``panorama-rectified.png`` when it was opened from an array (and as
             ``<stem>-rectified.<suffix>`` for the bundled sample, never written next to).
+        gpano : bool
+            Write the Photo Sphere XMP when the panorama has none (the result is a whole
+            sphere). The panorama file's metadata is carried either way, brought up to date
+            (:func:`omniwidget.io.metadata.output_metadata`): EXIF (orientation 1, the
+            sizes), ICC profile, XMP with its GPano sizes and pose (levelled: pitch and roll 0).
 
         Raises
         ------
@@ -1164,13 +1170,13 @@ class EditingSession:
         """
         if self._in_strips():
             try:
-                return self._save_in_strips(self.document, path)
+                return self._save_in_strips(self.document, path, gpano=gpano)
             except Exception as exc:
                 self._report_error(self._save_image_error(exc))
                 raise
         try:
             result = self._full(self.document, self._key(), warn=False)
-            written = self._write_result(result.image, path)
+            written = self._write_result(result.image, path, self.document, gpano=gpano)
         except Exception as exc:
             self._report_error(self._save_image_error(exc))
             raise
@@ -1183,7 +1189,7 @@ class EditingSession:
 
         return self._image_path is not None and self._video is None and self._width > STREAM_WIDTH
 
-    def _save_in_strips(self, doc: Handles, path: str | os.PathLike[str] | None) -> Path:
+    def _save_in_strips(self, doc: Handles, path: str | os.PathLike[str] | None, *, gpano: bool = True) -> Path:
         """Save image for a panorama too large to warp whole: made and written in strips, its progress in :attr:`status`.
 
         :func:`~omniwidget.app.strips.strips_of_file` chooses where the pixels come from (a patch at a time from disk
@@ -1206,14 +1212,21 @@ class EditingSession:
             self._set_status(message=said, saving={"done": rows, "total": height}, save={"state": "running", "message": said})
 
         with strips_of_file(self._image_path, doc, image=self._full_image, output=target) as made:
-            write_image_strips(target, made.shape, made.dtype, made.image_strips(), progress=progress)
+            meta = self._output_metadata(doc, made.shape, gpano)
+            write_image_strips(target, made.shape, made.dtype, made.image_strips(), progress=progress, meta=meta)
         self._say_saved(target, made.shape)
         return target
 
-    def _write_result(self, image: NDArray, path: str | os.PathLike[str] | None) -> Path:
+    def _write_result(self, image: NDArray, path: str | os.PathLike[str] | None, doc: Handles | None = None, *, gpano: bool = True) -> Path:
         target = self._target(path, image)
-        write_image(target, image)
+        write_image(target, image, self._output_metadata(doc, image.shape, gpano))
         return target
+
+    def _output_metadata(self, doc: Handles | None, shape: tuple[int, ...], gpano: bool) -> Metadata:
+        """What Save image writes with the result: the panorama file's metadata brought up to date, GPano as ``gpano`` says."""
+        source = read_metadata(self._image_path) if self._image_path is not None and self._video is None else None
+        levelled = doc is not None and doc.options.up is not None
+        return output_metadata(source, shape[1], shape[0], gpano=gpano, levelled=levelled)
 
     def _target(self, path: str | os.PathLike[str] | None, image: NDArray) -> Path:
         """Where Save image writes ``image`` (:func:`_result_location`), refused if it is the input panorama."""
@@ -1251,7 +1264,7 @@ class EditingSession:
             self._set_save("error", "could not save the image: the result could not be computed")
             return  # the computation's error is shown
         try:
-            path = self._write_result(result.image, None)
+            path = self._write_result(result.image, None, doc)
             data = path.read_bytes()
         except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
             self.last_error = exc

@@ -653,12 +653,44 @@ def tiff_tags(metadata: Metadata) -> list[tuple[int, int, int, bytes, bool]]:
     return tags
 
 
-def with_metadata(data: bytes, metadata: Metadata) -> bytes:
-    """An encoded image's bytes with ``metadata`` added (JPEG, PNG, WebP), the encoded pixels untouched.
+def _tiff_with(data: bytes, metadata: Metadata) -> bytes:
+    """A classic TIFF's bytes with ``metadata``'s XMP and ICC profile as tags of its first directory.
 
-    Its own metadata blocks of the same kinds are replaced. Other formats (TIFF, BMP,
-    ``.npy``) are returned as they are: TIFF's outputs carry theirs when written in strips
-    (:func:`tiff_tags`).
+    The directory is written anew at the end of the file with the two tags (and the old
+    entries, whose values stay where they are), and the header points to it: no byte of the
+    image data moves. A BigTIFF, or a directory that does not read, is returned as it is.
+    """
+    tags = {tag: (kind, value) for tag, kind, _, value, _ in tiff_tags(metadata)}
+    if not tags or len(data) < 8 or data[:2] not in (b"II", b"MM"):
+        return data
+    e = "<" if data[:2] == b"II" else ">"
+    magic, ifd0 = struct.unpack_from(e + "HI", data, 2)
+    entries = _ifd_entries(data, ifd0, e) if magic == 42 else None
+    if entries is None:
+        return data
+    (next_ifd,) = struct.unpack_from(e + "I", data, ifd0 + 2 + 12 * len(entries))
+    kept = {tag: data[where - 8 : where + 4] for tag, _, _, where in entries if tag not in tags}
+    out = bytearray(data)
+    if len(out) % 2:
+        out += b"\0"
+    for tag, (kind, value) in tags.items():
+        at = len(out)
+        out += value + (b"\0" if len(value) % 2 else b"")
+        kept[tag] = struct.pack(e + "HHII", tag, kind, len(value), at)
+    if len(out) + 6 + 12 * len(kept) >= 1 << 32:
+        return data
+    directory = len(out)
+    out += struct.pack(e + "H", len(kept)) + b"".join(kept[t] for t in sorted(kept)) + struct.pack(e + "I", next_ifd)
+    struct.pack_into(e + "I", out, 4, directory)
+    return bytes(out)
+
+
+def with_metadata(data: bytes, metadata: Metadata) -> bytes:
+    """An encoded image's bytes with ``metadata`` added (JPEG, PNG, WebP; TIFF its XMP and ICC profile), the encoded pixels untouched.
+
+    Its own metadata blocks of the same kinds are replaced. Other formats (BMP, ``.npy``)
+    are returned as they are. TIFF holds no EXIF block here: its offsets would all have to
+    move into the file's (a TIFF written in strips carries the same two tags, :func:`tiff_tags`).
     """
     if metadata == Metadata():
         return data
@@ -668,6 +700,8 @@ def with_metadata(data: bytes, metadata: Metadata) -> bytes:
         return _png_with(data, png_chunks(metadata))
     if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
         return _webp_with(data, metadata)
+    if data[:4] in (b"II*\x00", b"MM\x00*"):
+        return _tiff_with(data, metadata)
     return data
 
 
