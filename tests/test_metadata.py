@@ -273,6 +273,16 @@ def test_level_writes_the_pose_that_is_now_true(tagged, capsys):
     _check_output(folder / "level.jpg", icc, 512, pitch=0.0, roll=0.0)
 
 
+@pytest.mark.slow  # the structure found and rectified: about 5 s
+@needs_exiftool
+def test_straighten_keeps_the_metadata_and_writes_it_levelled(tagged, capsys):
+    folder, path, icc, _ = tagged
+    assert main(["straighten", str(path), "-o", str(folder / "straight.jpg")]) == 0
+    _check_output(folder / "straight.jpg", icc, 512, pitch=0.0, roll=0.0)
+    assert main(["straighten", str(path), "-o", str(folder / "kept.jpg"), "--no-level"]) == 0
+    _check_output(folder / "kept.jpg", icc, 512, pitch=3.5, roll=-1.25)
+
+
 @needs_exiftool
 def test_the_editor_saves_the_metadata(tagged, monkeypatch):
     from omniwidget.app.session import EditingSession
