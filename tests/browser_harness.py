@@ -1,4 +1,4 @@
-"""Real-browser test harness for anywidget widgets in JupyterLab and Jupyter Notebook 7.
+"""Real-browser test harness for anywidget widgets in JupyterLab, Jupyter Notebook 7 and marimo.
 
 This is a plain helper module (not collected by pytest).  It drives a real
 Jupyter server with either front end (:data:`FRONTENDS`: ``"lab"`` for JupyterLab,
@@ -25,6 +25,11 @@ inspect the *same* kernel from Python::
 In the test suite the session fixture ``jupyter_server`` (tests/conftest.py) is
 parametrized over both front ends, so every real-browser test runs in JupyterLab
 and in Notebook 7.
+
+marimo, which runs anywidget widgets in a front end of its own, has :class:`MarimoServer`
+(``marimo run`` of a notebook file, a subprocess on 127.0.0.1) and :class:`MarimoPage` (the app
+in a browser tab, with the ``output``/``wait_for_output``/``diagnostics`` of :class:`NotebookPage`);
+``tests/test_editor_marimo_browser.py`` uses them.
 
 Design notes
 ------------
@@ -222,6 +227,20 @@ def require_browser(*frontends: str) -> None:
     for module in ("playwright", *apps, "jupyter_client", "nbformat"):
         if importlib.util.find_spec(module) is None:
             missing.append(f"python package {module!r}")
+    _skip_or_fail(missing)
+
+
+def require_marimo() -> None:
+    """Like :func:`require_browser`, for a real-browser test in marimo: Chromium, ``playwright`` and ``marimo``."""
+    missing = []
+    if not (os.path.isfile(CHROMIUM) and os.access(CHROMIUM, os.X_OK)):
+        missing.append(f"chromium executable {CHROMIUM}")
+    missing += [f"python package {module!r}" for module in ("playwright", "marimo") if importlib.util.find_spec(module) is None]
+    _skip_or_fail(missing)
+
+
+def _skip_or_fail(missing: Sequence[str]) -> None:
+    """Skip (or, with ``OMNIWIDGET_BROWSER_TESTS=1``, fail) naming what is ``missing``; nothing when it is empty."""
     if not missing:
         return None
     reason = "browser tests need " + ", ".join(missing)
@@ -920,3 +939,209 @@ def run_in_kernel(client: Any, code: str, timeout: float = 60) -> str:
             + (f"\n--- stderr ---\n{''.join(stderr)}" if stderr else "")
         )
     return "".join(stdout)
+
+
+# --------------------------------------------------------------------------- marimo
+
+
+class MarimoServer:
+    """``marimo run`` of one notebook (a marimo app file) on 127.0.0.1, as a subprocess killed on :meth:`stop`.
+
+    marimo runs anywidget widgets in its own front end (no Jupyter server, no comm manager: the
+    widget's model goes through marimo's websocket, and the widget is drawn in a shadow root).
+    ``marimo run`` serves the notebook as an app: each page load is a session of its own that runs
+    every cell, and no code can be sent to its kernel from outside, so a test reads the kernel's
+    work from what the widget shows and the files it writes (into :attr:`root`, the kernel's
+    working folder).
+
+    The server asks for a token (``--token-password``, random; the page's URL carries it as
+    ``access_token``), keeps marimo's config and state in a temporary directory
+    (``XDG_CONFIG_HOME``, ``XDG_STATE_HOME``), skips marimo's update check, and gives the kernel the
+    repository on ``PYTHONPATH``. Use as a context manager.
+
+    Attributes
+    ----------
+    url : str
+        The app's address with the token, e.g. ``http://127.0.0.1:43125/?access_token=...``.
+    root : Path
+        The working folder of the server and its kernels (Save image writes there); holds ``marimo.log``.
+    """
+
+    #: What differs from the Jupyter front ends that the tests need to know: artifacts' names.
+    artifact_suffix = "-marimo"
+
+    def __init__(self, notebook: str | os.PathLike[str], *, name: str = "marimo", startup_timeout: float = 90.0) -> None:
+        self.notebook = Path(notebook).resolve()
+        self.name = name
+        self.startup_timeout = startup_timeout
+        self.token = secrets.token_hex(24)
+        self.port = 0
+        self.base = ""
+        self.url = ""
+        self._tmp: Path | None = None
+        self.root = Path()
+        self.log_path = Path()
+        self.process: subprocess.Popen[bytes] | None = None
+        self._log_file: Any = None
+
+    def __enter__(self) -> MarimoServer:
+        return self.start()
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+
+    def start(self) -> MarimoServer:
+        """Start ``python -m marimo run NOTEBOOK --headless`` and wait until ``/health`` answers."""
+        if self.process is not None:
+            raise RuntimeError("server already started")
+        self._tmp = Path(tempfile.mkdtemp(prefix=f"omniwidget-marimo-{self.name}-"))
+        self.root = self._tmp / "root"
+        self.root.mkdir()
+        env = dict(os.environ)
+        env.update(
+            XDG_CONFIG_HOME=str(self._tmp / "config"),
+            XDG_STATE_HOME=str(self._tmp / "state"),
+            MARIMO_SKIP_UPDATE_CHECK="1",
+            PYTHONPATH=os.pathsep.join(p for p in (str(REPO_ROOT), os.environ.get("PYTHONPATH", "")) if p),
+            PYTHONUNBUFFERED="1",
+        )
+        self.port = _free_port()
+        self.base = f"http://127.0.0.1:{self.port}"
+        self.url = f"{self.base}/?access_token={self.token}"
+        cmd = [
+            sys.executable,
+            "-m",
+            "marimo",
+            "run",
+            str(self.notebook),
+            "--headless",
+            "--host=127.0.0.1",
+            f"--port={self.port}",
+            f"--token-password={self.token}",
+        ]
+        self.log_path = self.root / "marimo.log"
+        self._log_file = open(self.log_path, "wb")  # noqa: SIM115 - closed in stop()
+        self.process = subprocess.Popen(
+            cmd, cwd=self.root, env=env, stdout=self._log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True
+        )
+        try:
+            wait_until(
+                self._is_up,
+                timeout=self.startup_timeout,
+                interval=0.2,
+                description=f"marimo at {self.base}/health",
+                diagnostics=lambda: f"marimo log tail:\n{self.log_tail()}",
+            )
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def _is_up(self) -> bool:
+        if self.process is not None and self.process.poll() is not None:
+            raise RuntimeError(f"marimo exited with code {self.process.returncode}\nmarimo log tail:\n{self.log_tail()}")
+        try:
+            with urllib.request.urlopen(f"{self.base}/health", timeout=2) as resp:
+                return resp.status == 200
+        except (urllib.error.URLError, OSError):
+            return False
+
+    def stop(self) -> None:
+        """Terminate the server's process group (SIGTERM, then SIGKILL); keep its log in :func:`artifact_dir`; clean up."""
+        process, self.process = self.process, None
+        if process is not None:
+            JupyterServer._kill_group(process)
+        if self._log_file is not None:
+            self._log_file.close()
+            self._log_file = None
+        if self._tmp is not None:
+            with contextlib.suppress(OSError):
+                shutil.copyfile(self.log_path, artifact_dir() / f"marimo-{self.name}.log")
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            self._tmp = None
+
+    def log_tail(self, lines: int = 60) -> str:
+        """The last ``lines`` lines of the server's log."""
+        try:
+            text = self.log_path.read_text(errors="replace")
+        except OSError as exc:
+            return f"<no marimo log: {exc}>"
+        return "\n".join(text.splitlines()[-lines:])
+
+    def artifact(self, filename: str) -> Path:
+        """``artifact_dir()/<stem>-marimo<suffix>``: a test's artifacts, apart from the Jupyter front ends'."""
+        name = Path(filename)
+        return artifact_dir() / f"{name.stem}{self.artifact_suffix}{name.suffix}"
+
+
+class MarimoPage:
+    """A browser tab showing a :class:`MarimoServer`'s app, in its own browser context.
+
+    Speaks as :class:`NotebookPage` does where the editor's tests need it (:meth:`output`,
+    :meth:`wait_for_output`, :meth:`explain`, :meth:`diagnostics`, :meth:`console_errors`,
+    :meth:`screenshot`), so their helpers (``Pane``, ``wait_idle``) work on it unchanged.
+    Playwright's CSS selectors go into shadow roots, where marimo draws anywidget widgets.
+    Downloads are accepted.
+    """
+
+    def __init__(self, browser: Any, server: MarimoServer, *, timeout: float = 60.0) -> None:
+        self.browser = browser
+        self.server = server
+        self.timeout = timeout
+        self.context: Any = None
+        self.page: Any = None
+        self.console: ConsoleCollector | None = None
+
+    def __enter__(self) -> MarimoPage:
+        self.context = self.browser.new_context(viewport={"width": 1280, "height": 900}, accept_downloads=True)
+        self.context.set_default_timeout(self.timeout * 1000)
+        self.page = self.context.new_page()
+        self.console = ConsoleCollector(self.page)
+        self.page.goto(self.server.url, wait_until="domcontentloaded")
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        if self.context is not None:
+            self.context.close()
+            self.context = None
+
+    def output(self, selector: str) -> Any:
+        """Playwright locator for ``selector`` in the app (shadow roots included)."""
+        return self.page.locator(selector)
+
+    def wait_for_output(self, selector: str, *, timeout: float | None = None, state: str = "visible") -> Any:
+        """Wait until ``selector`` is ``state`` in the app; return its locator."""
+        timeout = self.timeout if timeout is None else timeout
+        locator = self.output(selector)
+        with self.explain(f"{selector!r} to be {state} in the marimo app"):
+            locator.first.wait_for(state=state, timeout=timeout * 1000)
+        return locator
+
+    @contextlib.contextmanager
+    def explain(self, description: str) -> Iterator[None]:
+        """Re-raise Playwright timeouts / assertion errors with what was awaited and diagnostics."""
+        from playwright.sync_api import Error as PlaywrightError
+
+        try:
+            yield
+        except (AssertionError, PlaywrightError) as exc:
+            raise AssertionError(f"while waiting for {description}: {exc}\n{self.diagnostics()}") from exc
+
+    def console_errors(self) -> list[str]:
+        """Browser console errors / page errors seen so far, minus :data:`ALLOWED_CONSOLE_ERRORS`."""
+        return self.console.errors() if self.console else []
+
+    def diagnostics(self) -> str:
+        """The page's address, its console errors and the tail of marimo's log."""
+        console = "\n".join(str(e) for e in self.console.entries) if self.console else ""
+        return (
+            f"--- front end ---\nmarimo at {self.page.url if self.page else '<no page>'}\n"
+            f"--- browser console errors ---\n{console or '<none>'}\n"
+            f"--- marimo log tail ---\n{self.server.log_tail()}"
+        )
+
+    def screenshot(self, name: str) -> Path:
+        """Save a PNG screenshot of the page to :meth:`MarimoServer.artifact` ``(<name>.png)``; return the path."""
+        path = self.server.artifact(f"{name}.png")
+        self.page.screenshot(path=str(path))
+        return path

@@ -1076,6 +1076,19 @@ function toggleHandles(ed) {
   draw(ed);
 }
 
+// marimo renders the editor in a shadow root: a listener on the window is told the host element
+// as an event's target, and document.activeElement is the host too. The node itself is the first
+// of the event's composed path, and the focused one the shadow root's activeElement (in Jupyter
+// both are the document's: the same as e.target and document.activeElement).
+const targetOf = (e) => {
+  const node = typeof e.composedPath === "function" ? e.composedPath()[0] : e.target;
+  return node instanceof Node ? node : null;
+};
+const focusedIn = (root) => {
+  const home = root.getRootNode();
+  return home instanceof Document || home instanceof ShadowRoot ? home.activeElement : null;
+};
+
 // The help closes with Esc, its × or a click anywhere outside it (the click does nothing else).
 function toggleHelp(ed, show = !ed.state.help) {
   const { state, ui } = ed;
@@ -1086,7 +1099,7 @@ function toggleHelp(ed, show = !ed.state.help) {
   if (show) {
     state.closeHelp = (e) => {
       if (!ui.root.isConnected) return toggleHelp(ed, false);
-      const target = e.target instanceof Node ? e.target : null;
+      const target = targetOf(e);
       if (target && (ui.helpBox.contains(target) || ui.toolbar.querySelector('[data-action="help"]').contains(target))) return;
       toggleHelp(ed, false);
       if (target && ui.root.contains(target)) {
@@ -1400,8 +1413,9 @@ function wireFocus(ed) {
   const { root } = ed.ui;
   function onWindowKeydown(e) {
     if (!root.isConnected) return listenToWindow(false);
-    if (!(e.target instanceof Element && root.contains(e.target))) return;
-    const holders = [root, e.target];
+    const target = targetOf(e);
+    if (!(target instanceof Element && root.contains(target))) return;
+    const holders = [root, target];
     if (passesToJupyter(e)) {
       for (const node of holders) node.removeAttribute(SUPPRESS);
       setTimeout(() => holders.forEach((node) => node.setAttribute(SUPPRESS, "true"))); // after the document's listener
@@ -1411,8 +1425,9 @@ function wireFocus(ed) {
   // here after a click on the cell's prompt (the editor is inside the cell it makes active).
   function onWindowPointerdown(e) {
     if (!root.isConnected) return listenToWindow(false);
-    const focused = document.activeElement;
-    if (e.target instanceof Node && !root.contains(e.target) && root.contains(focused)) focused.blur();
+    const focused = focusedIn(root);
+    const target = targetOf(e);
+    if (target && !root.contains(target) && focused && root.contains(focused)) focused.blur();
   }
   function listenToWindow(on) {
     const method = on ? "addEventListener" : "removeEventListener";
@@ -1487,7 +1502,8 @@ function escape(ed) {
 function releaseFocus(ed) {
   const { root } = ed.ui;
   const home = root.closest(".jp-Cell") || (root.parentElement && root.parentElement.closest("[tabindex]"));
-  if (root.contains(document.activeElement)) document.activeElement.blur();
+  const focused = focusedIn(root);
+  if (focused && root.contains(focused)) focused.blur();
   if (home) home.focus({ preventScroll: true });
 }
 
