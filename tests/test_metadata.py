@@ -396,6 +396,12 @@ def test_without_gpano_the_fit_is_as_before(tmp_path):
     write_image(tmp_path / "band.png", band)
     assert ow.read_image(tmp_path / "band.png").shape == (300, 1000, 3)
     assert ow.read_panorama(tmp_path / "band.png", "pad").shape == (500, 1000, 3)
+    # tags that place nothing (a sphere that is not 2:1) are read as if absent
+    bad = metadata.Metadata(xmp=metadata.replace_xmp(None, metadata.GPano(1000, 700, 1000, 300, 0, 100)))
+    (tmp_path / "bad.png").write_bytes(encode_image(tmp_path / "bad.png", band, bad))
+    assert metadata.read_metadata(tmp_path / "bad.png").gpano == metadata.GPano(1000, 700, 1000, 300, 0, 100)
+    assert ow.read_image(tmp_path / "bad.png").shape == (300, 1000, 3)
+    assert ow.read_panorama(tmp_path / "bad.png", "pad").shape == (500, 1000, 3)
 
 
 # --- levelling without resampling ---------------------------------------------------------------

@@ -1064,8 +1064,8 @@ def _placed(path: Path, image: NDArray, data: bytes | Path | None) -> NDArray:
     if data is None:
         return image
     found = metadata.read_metadata(data).gpano
-    if found is None or found.is_full:
-        return image
+    if found is None or found.is_full or found.placement(image.shape[1], image.shape[0]) is None:
+        return image  # a whole sphere, or tags that place nothing (read as the file holds it: --fit as without them)
     return place_gpano(image, found, str(path))
 
 
