@@ -290,9 +290,9 @@ def test_the_gallery_shows_the_suggested_lines_and_each_panorama_levelled(site):
 
 def test_the_command_line_page_shows_the_commands_own_help(site):
     text = (site / "cli.html").read_text(encoding="utf-8")
-    for flag in ("--handles", "--apply-map", "--output-dir", "--fit", "--max-lines"):
+    for flag in ("--handles", "--apply-map", "--output-dir", "--fit", "--max-lines", "--yaw", "--pitch", "--fov"):
         assert flag in text, flag
-    for command in ("warp", "level", "suggest", "demo", "schema"):
+    for command in ("warp", "level", "suggest", "view", "demo", "schema"):
         assert f"$ omniwidget {command} --help" in text, command
 
 

@@ -954,6 +954,8 @@ def _cmd_demo(args: argparse.Namespace) -> None:
 
 def _cmd_view(args: argparse.Namespace) -> None:
     """``omniwidget view``: a perspective still of a panorama (:func:`omniwidget.raster.perspective.view`), the camera checked before any work."""
+    import math
+
     from ..errors import ImageError
     from ..io.images import check_writable, encode_image, read_panorama, write_bytes
     from ..raster.perspective import check_view, view
@@ -969,7 +971,10 @@ def _cmd_view(args: argparse.Namespace) -> None:
             raise ImageError(f"--{name} {value}: at least one pixel")
     _check_output(args.output, _IMAGE_SUFFIXES, "output image")
     _refuse_overwrites(args, [("-o", args.output)])
-    image = read_panorama(args.input, args.fit)
+    # the still's centre has focal pixels a radian: a panorama of 2 pi focal pixels is as sharp there (and the view is
+    # sharpest at its centre), so a JPEG at least twice that wide is decoded reduced (libjpeg's DCT scaling, an average)
+    focal = args.width / (2 * math.tan(math.radians(fov) / 2))
+    image = read_panorama(args.input, args.fit, width=math.ceil(2 * math.pi * focal))
     check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
     still = view(image, yaw=yaw, pitch=pitch, fov=fov, width=args.width, height=args.height, order=args.order)
     write_bytes(args.output, encode_image(args.output, still.image))

@@ -347,6 +347,7 @@ function buildHelp(ed) {
     el("h3", {}, "Keyboard and mouse"),
     el("table", {}, ...SHORTCUTS.map(([k, what]) => el("tr", {}, el("th", {}, k), el("td", {}, what)))),
     el("p", {}, "Positions are [lon, lat] in degrees whatever the zoom. Draw on the input; move control points on the result."),
+    el("p", {}, "Look around shows the result as a 360° viewer does (the camera of omniwidget view): drag to turn it, the wheel to zoom."),
     el(
       "p",
       {},
