@@ -19,8 +19,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._checks import whole_number
 from .._blas import one_blas_thread
+from .._checks import whole_number
 from .._timing import Laps
 from ..document.handles import Handles
 from ..method.background import BACKGROUND
