@@ -16,7 +16,9 @@ noise, tilted) resampled to the width asked, or with ``--photos`` each panorama 
 :data:`omniwidget.detect.lines.DETECT_WIDTH` themselves). Timed, in turns so that the shared
 machine's load falls on all alike: the plain detector on the six cube faces (rendering the
 faces and detecting, no lifting or merging: the floor the suggestions cannot go below),
-:func:`omniwidget.suggest_lines` and :func:`omniwidget.level` (which detects too). Printed:
+:func:`omniwidget.suggest_lines` (the structure chosen), ``suggest_lines(structure=False)`` (every
+line, ranked: what the choice costs is the ratio of the two) and :func:`omniwidget.level` (which
+detects too). Printed:
 medians in seconds and each one's ratio to the plain detector. ``--process`` also times
 ``omniwidget suggest IMG -o h.json`` and ``omniwidget level IMG -o out.jpg`` as new
 processes (median of ``--process-repeat``); ``--profile NAME`` prints cProfile's top
@@ -125,11 +127,13 @@ def photos(folder: Path, args: argparse.Namespace) -> None:
         runs: dict[str, Callable[[], object]] = {
             "plain detector, 6 faces": partial(plain, image, args.detector),
             "suggest_lines": partial(ow.suggest_lines, image, detector=args.detector),
+            "suggest_lines, raw": partial(ow.suggest_lines, image, detector=args.detector, structure=False),
             "level": partial(_level, image),
         }
         load = " / ".join(f"{x:.1f}" for x in os.getloadavg())
         print(f"{path.name} ({image.shape[1]} x {image.shape[0]}), medians of {args.repeat} runs in turns (load average {load})")
         medians = report(timed(runs, args.repeat), "plain detector, 6 faces", "    ")
+        print(f"    the structure's choice: {medians['suggest_lines'] / medians['suggest_lines, raw']:.2f} x suggest_lines(structure=False)")
         whole = process_times(path, args.process_repeat) if args.process else {}
         if whole:
             print(f"    whole process: suggest {whole['suggest']:.2f} s, level {whole['level']:.2f} s (medians of {args.process_repeat})")
@@ -161,11 +165,13 @@ def main() -> int:
     runs = {
         "plain detector, 6 faces": lambda: plain(image, args.detector),
         "suggest_lines": lambda: ow.suggest_lines(image, detector=args.detector),
-        "level": lambda: ow.level(image, suggestions=ow.suggest_lines(image, max_lines=None, detector=args.detector)),
+        "suggest_lines, raw": lambda: ow.suggest_lines(image, detector=args.detector, structure=False),
+        "level": lambda: ow.level(image, suggestions=ow.suggest_lines(image, max_lines=None, detector=args.detector, structure=False)),
     }
     times = timed(runs, args.repeat)
     print(f"{args.width} x {args.width // 2}, detector {args.detector}, medians of {args.repeat} runs in turns")
-    report(times, "plain detector, 6 faces")
+    medians = report(times, "plain detector, 6 faces")
+    print(f"  the structure's choice: suggest_lines {medians['suggest_lines'] / medians['suggest_lines, raw']:.2f} x suggest_lines(structure=False)")
     return 0
 
 

@@ -433,26 +433,32 @@ def side_difference(image: NDArray, suggestions: Sequence[Suggestion], offsets: 
 
 
 def _near_pairs(arcs: _Arcs, reach: float) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """Pairs ``(i, j)``, ``i != j``, of arcs that come within ``reach`` radians of each other (or may: their caps overlap)."""
+    """Pairs ``(i, j)``, ``i != j``, of arcs that come within ``reach`` radians of each other (or may: their caps overlap).
+
+    Caps of half-widths ``h_i``, ``h_j`` (half the arc plus ``reach``, each below 90°)
+    overlap when the middles' cosine is at least ``cos(h_i + h_j) = cos h_i cos h_j - sin
+    h_i sin h_j``: two outer products, no cosine of the whole table.
+    """
     middle = _unit(arcs.start + arcs.end)
-    half = arcs.length / 2 + reach
-    limit = np.cos(np.minimum(half[:, None] + half[None, :], np.pi))
-    i, j = np.nonzero(middle @ middle.T >= limit - 1e-12)
+    half = np.minimum(arcs.length / 2 + reach, np.pi / 2)
+    c, s = np.cos(half), np.sin(half)
+    i, j = np.nonzero(middle @ middle.T >= np.outer(c, c) - np.outer(s, s) - 1e-12)
     keep = i != j
     return i[keep], j[keep]
 
 
-def _crossings(arcs: _Arcs, margin: float) -> tuple[NDArray[np.bool_], FloatArray]:
+def _crossings(arcs: _Arcs, margin: float, pairs: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None) -> tuple[NDArray[np.bool_], FloatArray]:
     """Which pairs cross at least ``margin`` radians inside both, (k, k), and how deep inside each the crossing is.
 
     ``depth[i, j]`` is the distance (radians) from the nearer end of arc ``i`` to where
     circle ``j`` meets it, on the point of the two (antipodal) meetings nearer both arcs'
     middles; negative outside arc ``i``; ``-inf`` for circles within 3° of each other and
-    for arcs too far apart to meet (their caps do not overlap).
+    for arcs too far apart to meet (their caps do not overlap). ``pairs``: the pairs to look
+    at, at least those of :func:`_near_pairs` at reach 0.
     """
     k = len(arcs.length)
     depth = np.full((k, k), -np.inf)
-    i, j = _near_pairs(arcs, 0.0)
+    i, j = _near_pairs(arcs, 0.0) if pairs is None else pairs
     x = np.cross(arcs.normal[i], arcs.normal[j])
     size = np.linalg.norm(x, axis=1)
     usable = size > math.sin(math.radians(3.0))
@@ -489,11 +495,11 @@ def junctions(suggestions: Sequence[Suggestion], up: Sequence[float] | None = No
 
 def _junctions(arcs: _Arcs, kinds: NDArray[np.str_], up: FloatArray, pair: tuple[FloatArray, FloatArray] | None) -> Junctions:
     k = len(arcs.length)
-    crossing, depth = _crossings(arcs, math.radians(CROSS_MARGIN))
+    near_j, near_i = _near_pairs(arcs, math.radians(END_DISTANCE))  # the arcs near each other
+    crossing, depth = _crossings(arcs, math.radians(CROSS_MARGIN), (near_i, near_j))
     ends = np.concatenate([arcs.start, arcs.end])  # end e of arc j is row e * k + j
     owner = np.tile(np.arange(k), 2)
-    # the ends that may lie on each arc: those of the arcs near it (both ends of each)
-    near_j, near_i = _near_pairs(arcs, math.radians(END_DISTANCE))  # arc near_j's ends, arc near_i
+    # the ends that may lie on each arc: those of the arcs near it (both ends of each), arc near_j's ends on arc near_i
     rows = np.concatenate([near_j, near_j + k])
     cols = np.concatenate([near_i, near_i])
     point = ends[rows]
@@ -536,18 +542,27 @@ def _junctions(arcs: _Arcs, kinds: NDArray[np.str_], up: FloatArray, pair: tuple
 
 
 def _families(arcs: _Arcs, kinds: NDArray[np.str_], up: FloatArray, pair: tuple[FloatArray, FloatArray] | None) -> NDArray[np.intp]:
-    """Parallel neighbours of each vertical or horizontal arc: same vanishing direction, circles within FAMILY_SPACING, arcs facing each other."""
+    """Parallel neighbours of each vertical or horizontal arc: same vanishing direction, circles within FAMILY_SPACING, arcs facing each other.
+
+    Compared as cosines (no arccos of the whole table): circles ``0.3° < apart <
+    FAMILY_SPACING``, middles closer than half the longer arc plus FAMILY_SPACING.
+    """
     k = len(arcs.length)
+    out = np.zeros(k, dtype=np.intp)
     directions = np.array([up, *(pair if pair is not None else ())])
     which = np.argmin(np.abs(arcs.normal @ directions.T), axis=1)
-    which = np.where(kinds == "other", -1, which)
-    apart = np.degrees(np.arccos(np.clip(np.abs(arcs.normal @ arcs.normal.T), 0.0, 1.0)))
-    middle = _unit(arcs.start + arcs.end)
-    between = np.degrees(np.arccos(np.clip(middle @ middle.T, -1.0, 1.0)))
-    reach = np.degrees(np.maximum(arcs.length[:, None], arcs.length[None, :])) / 2 + FAMILY_SPACING
-    same = (which[:, None] == which[None, :]) & (which[:, None] >= 0) & (apart < FAMILY_SPACING) & (apart > 0.3) & (between < reach)
-    np.fill_diagonal(same, False)
-    return np.asarray(same.sum(axis=1), dtype=np.intp) if k else np.zeros(0, np.intp)
+    index = np.flatnonzero(kinds != "other")
+    if index.size < 2:
+        return out
+    which = which[index]
+    normal = arcs.normal[index]
+    middle = _unit(arcs.start[index] + arcs.end[index])
+    parallel = np.abs(normal @ normal.T)
+    reach = np.minimum(np.maximum(arcs.length[index][:, None], arcs.length[index][None, :]) / 2 + math.radians(FAMILY_SPACING), np.pi)
+    same = (which[:, None] == which[None, :]) & (parallel > math.cos(math.radians(FAMILY_SPACING))) & (parallel < math.cos(math.radians(0.3)))
+    same &= middle @ middle.T > np.cos(reach)
+    out[index] = same.sum(axis=1)
+    return out
 
 
 # --- the choice ----------------------------------------------------------------------
