@@ -1,4 +1,4 @@
-"""The command line: ``omniwidget warp``, ``level``, ``suggest``, ``demo`` and ``schema``.
+"""The command line: ``omniwidget warp``, ``straighten``, ``level``, ``suggest``, ``view``, ``demo`` and ``schema``.
 
 A successful run ends with one line on stderr saying what was written, its size, the time
 and how the result came out (``--quiet``: nothing). Bad input of any kind gives one line on
