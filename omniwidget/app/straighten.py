@@ -202,7 +202,8 @@ def find_structure(image: NDArray[Any], *, max_lines: int | None = MAX_LINES, le
             found = find_level(image, suggestions=every)
         except LevelError as exc:
             notes.append(f"not levelled: {exc}")
-    choice = choose_structure(every, None if found is None else found.up, width=min(int(image.shape[1]), DETECT_WIDTH), max_lines=max_lines)
+    width = min(int(image.shape[1]), DETECT_WIDTH)  # the width the lines were found at
+    choice = choose_structure(every, None if found is None else found.up, width=width, max_lines=max_lines, image=image)
     options = Options() if found is None else Options(up=found.up)
     return _uncrossed(Structure(suggestions_to_handles(choice.kept, options), found, tuple(choice.kept), tuple(choice.dropped), tuple(notes)))
 
