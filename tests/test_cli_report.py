@@ -111,7 +111,7 @@ def test_suggest_says_how_many_lines_it_wrote(files, capsys):
     out = files / "lines-found.json"
     assert main(["suggest", str(files / "room.png"), "-o", str(out), "--max-lines", "12"]) == 0
     line = _one_line(capsys)
-    found = re.fullmatch(rf"omniwidget suggest: wrote {re.escape(str(out))} \((\d+) line\(s\), the best of (\d+) found\) in {TIME}", line)
+    found = re.fullmatch(rf"omniwidget suggest: wrote {re.escape(str(out))} \((\d+) line\(s\), the structure among (\d+) found\) in {TIME}", line)
     assert found, line
     written = ow.load_handles(out).handles
     assert int(found.group(1)) == len(written) == 12 and int(found.group(2)) > 12

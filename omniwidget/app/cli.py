@@ -883,8 +883,9 @@ def _write_pose(args: argparse.Namespace, found: Any, handles: Any) -> None:
 
 
 def _cmd_suggest(args: argparse.Namespace) -> None:
-    """``omniwidget suggest``: a handles file of line handles along the straight edges found (best first)."""
+    """``omniwidget suggest``: a handles file of line handles along the structure found (best first: :func:`~omniwidget.detect.structure.choose_structure`)."""
     from ..detect import DETECT_WIDTH, level, level_document, suggest_lines, suggestions_to_handles
+    from ..detect.structure import choose_structure
     from ..document.handles import Handles
     from ..errors import ImageError
     from ..io.images import read_panorama, write_bytes
@@ -897,18 +898,20 @@ def _cmd_suggest(args: argparse.Namespace) -> None:
     # the lines are found at DETECT_WIDTH at most: a JPEG at least twice as wide is decoded reduced (libjpeg's DCT
     # scaling, an average over each block), suggest_lines takes it the rest of the way
     image = read_panorama(args.input, args.fit, width=DETECT_WIDTH)
-    suggestions = suggest_lines(image, max_lines=None)  # all of them: --level looks among every edge, not only the best
-    handles = suggestions_to_handles(suggestions[: args.max_lines])
+    every = suggest_lines(image, max_lines=None, structure=False)  # all of them: --level looks among every edge
+    found = level(image, suggestions=every) if args.level else None  # too few vertical edges: a LevelError, nothing written
+    width = min(int(image.shape[1]), DETECT_WIDTH)  # the width the lines were found at
+    chosen = choose_structure(every, None if found is None else found.up, width=width, max_lines=args.max_lines, image=image)
+    handles = suggestions_to_handles(chosen.kept)
     note = ""
-    if args.level:
-        found = level(image, suggestions=suggestions)  # too few vertical edges: a LevelError, nothing written
+    if found is not None:
         handles = level_document(handles, found)
         note = f"; levelled (options.up): pitch {found.pitch:+.2f}°, roll {found.roll:+.2f}° from {len(found.edges)} vertical edges"
     text = handles.to_json() + "\n"
     Handles.from_json(text)  # what is written is what the loader reads back
     write_bytes(args.output, text.encode())
     lines = sum(1 for h in handles.handles if h.kind == "line")
-    more = f", the best of {len(suggestions)} found" if len(suggestions) > lines else ""
+    more = f", the structure among {len(every)} found" if len(every) > lines else ""
     _say(args, f"wrote {args.output} ({lines} line(s){more}{note}) in {_elapsed(args)}")
 
 
