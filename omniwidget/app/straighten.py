@@ -152,14 +152,18 @@ class Straightened:
 
 def _reason_kind(why: str) -> str:
     """A short name for a reason of :attr:`Structure.dropped`, for the summary's counts."""
-    for key, name in (
+    for key, name in (  # the reasons of detect.structure.choose_structure and of this module
         ("gave way", "gave way in the warp"),
         ("pole", "over a pole"),
         ("in the output", "crossing in the output"),
+        ("crossed by", "texture"),
         ("cross", "crossing a kept line"),
         ("texture", "texture"),
-        ("beside", "beside a kept line"),
-        ("beyond the first", f"beyond the first {MAX_LINES}"),
+        ("same surface on both sides", "texture"),
+        ("parallel lines", "texture"),
+        ("within", "beside a kept line"),
+        ("kind 'other' and shorter", "short and neither vertical nor horizontal"),
+        ("beyond the first", "beyond the first ones kept"),
     ):
         if key in why:
             return name
