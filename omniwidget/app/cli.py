@@ -119,7 +119,7 @@ def _parser() -> argparse.ArgumentParser:
     level.add_argument("input", type=Path, help="equirectangular image (2:1)")
     level.add_argument("-o", "--output", type=Path, required=True, help="the levelled image (.png, .jpg, .tif, .npy)")
     level.add_argument("--map", type=Path, help="also save the inverse map, as warp --map writes it (.npy)")
-    level.add_argument("-H", "--handles", type=Path, help="also save the rotation as a handles file (JSON: one point handle, id 'level')")
+    level.add_argument("-H", "--handles", type=Path, help="also save the rotation as a handles file (JSON: no handles, options.up where the panorama sees the true vertical)")
     level.add_argument("--width", type=int, help="output width in pixels (even; default: the input's)")
     level.add_argument("--order", choices=("nearest", "bilinear", "bicubic"), default="bilinear", help="resampling (default: bilinear)")
     level.add_argument("--fit", choices=("pad", "stretch"), help="make a non-2:1 input 2:1 first, as for warp (default: refuse it)")
