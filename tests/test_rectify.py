@@ -200,3 +200,29 @@ def test_a_cage_in_the_doc_is_still_held_when_rectifying_all(room):
     moved = coords.angular_distance(result.inverse_points(inside), inside).max() * W / 360
     assert moved < 1e-12, f"{moved:.2e} px"
     assert cage_motion(result.inverse_map(np.float64), cage.vertices) < 1e-12
+
+
+def test_a_levelled_documents_near_vertical_lines_come_out_vertical():
+    """With ``upright`` (a document with options.up) a rectified line within a degree of the vertical is made a meridian,
+    its own great circle (a joint moves onto it), while a horizontal joined to it stays straight; without, it keeps its slant."""
+    from omniwidget.method.constraints import build_constraints
+    from omniwidget.method.rectify import near_vertical
+    from omniwidget.sphere import coords
+
+    vertical = LineHandle((30.0, -25.0), (30.4, 20.0))  # 0.4° of longitude over 45° of latitude: within a degree of the zenith
+    horizontal = LineHandle((30.9, -25.6), (75.0, -20.0))  # meets the vertical's foot within the joint distance
+    assert near_vertical(vertical.start, vertical.end) and not near_vertical(horizontal.start, horizontal.end)
+    doc = Handles((vertical, horizontal))
+    samples = coords.geodesic(vertical.start, vertical.end, np.linspace(0.0, 1.0, 9))
+    spread = {}
+    for upright in (False, True):
+        c = build_constraints(doc, upright=upright)
+        (m,) = [k.moebius for k in c.controls if k.handle == 0]
+        out = m(samples)
+        spread[upright] = float(np.ptp(out[:, 0]))
+        ends = np.concatenate([s[[0, -1]] for k, s in c.lines if c.controls[k].handle == 1])  # the horizontal's pieces' ends
+        joint = ends[np.argmin(coords.angular_distance(ends, vertical.start))]  # its start, snapped to the joint
+        if upright:  # the joint lies on the vertical's own great circle
+            n = np.cross(*coords.lonlat_to_xyz(np.array([vertical.start, vertical.end])))
+            assert abs(coords.lonlat_to_xyz(joint) @ n) / np.linalg.norm(n) < 1e-9
+    assert spread[True] < 1e-6 and spread[False] > 0.05, spread

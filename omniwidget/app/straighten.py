@@ -225,7 +225,7 @@ def _uncrossed(found: Structure, rounds: int = 3) -> Structure:
     from ..method.deformation import crossing_handles, levelled_handles
 
     for _ in range(rounds):
-        constraints = build_constraints(levelled_handles(found.handles))
+        constraints = build_constraints(levelled_handles(found.handles), upright=found.handles.options.up is not None)
         reasons = {h: f"passes {90 - abs(lat):.0f}° from the {'north' if lat > 0 else 'south'} pole: it cannot be straight" for h, lat in constraints.near_pole}
         for a, b in crossing_handles(constraints):  # best first: a line crossing one already left out stays
             if a not in reasons and b not in reasons:

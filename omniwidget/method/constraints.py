@@ -33,7 +33,7 @@ from ..sphere import coords
 from ..sphere.arcs import arc_crossing
 from ..sphere.moebius import Moebius
 from .limits import check_samples, check_weights
-from .rectify import Anchor, Bone, RectifySolution, solve_bones
+from .rectify import Anchor, Bone, RectifySolution, near_vertical, solve_bones
 
 __all__ = [
     "JOINT_DISTANCE",
@@ -201,8 +201,13 @@ def _crossing_candidates(pieces: list[_Piece], i: int) -> NDArray[np.intp]:
     return np.flatnonzero(may & (norm >= 0.5e-12) & ~targets) + i + 1  # arc_crossing: none below 1e-12
 
 
-def _joints(pieces: list[_Piece], distance: float) -> dict[tuple[int, int], int]:
-    """Cluster line endpoints closer than ``distance`` degrees; returns (piece, end) -> joint id."""
+def _joints(pieces: list[_Piece], distance: float, uprights: set[int] | None = None) -> dict[tuple[int, int], int]:
+    """Cluster line endpoints closer than ``distance`` degrees; returns (piece, end) -> joint id.
+
+    Each cluster's ends move to their mean direction; where one of them is a piece made
+    vertical (``uprights``), to the point of that piece's great circle nearest it, so that
+    the vertical edge's own circle is the one made vertical.
+    """
     ends = [(i, e) for i, p in enumerate(pieces) if p.line.targets is None for e in (0, 1)]
     xyz = np.array([pieces[i].start if e == 0 else pieces[i].end for i, e in ends]).reshape(-1, 3)
     parent = list(range(len(ends)))
@@ -230,6 +235,11 @@ def _joints(pieces: list[_Piece], distance: float) -> dict[tuple[int, int], int]
         if len(set(pieces_in)) < 2 or len(set(pieces_in)) < len(pieces_in):
             continue  # a lone endpoint, or a line shorter than the joint distance: not a joint
         centre = xyz[members].sum(axis=0)
+        upright = next((ends[m][0] for m in members if ends[m][0] in (uprights or set())), None)
+        if upright is not None:  # onto the vertical's circle: its input is the edge itself
+            normal = np.cross(pieces[upright].start, pieces[upright].end)
+            normal /= np.linalg.norm(normal)
+            centre -= (centre @ normal) * normal
         centre /= np.linalg.norm(centre)
         jid = len({*joint_of.values()})
         for m in members:
@@ -318,7 +328,9 @@ def split_line(
     return pieces
 
 
-def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distance: float = JOINT_DISTANCE) -> Constraints:
+def build_constraints(
+    handles: Handles, *, samples: int = SAMPLES, joint_distance: float = JOINT_DISTANCE, upright: bool = False
+) -> Constraints:
     """The controls of a handles document and the boundary conditions of their weights.
 
     Parameters
@@ -328,6 +340,10 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
         Points per line and per cage edge, endpoints included (at least 2).
     joint_distance : float
         Degrees; line endpoints closer than this become one joint.
+    upright : bool
+        The input is levelled (the method of a document with ``options.up``): a rectified
+        line whose great circle passes within :data:`~omniwidget.method.rectify.UPRIGHT_TOLERANCE`
+        of the zenith is a vertical edge, made vertical by Sec. 3.4 (:attr:`Bone.upright`).
 
     Returns
     -------
@@ -351,11 +367,14 @@ def build_constraints(handles: Handles, *, samples: int = SAMPLES, joint_distanc
     pieces = _split_crossings(pieces)
     # the weights' size known so far (a control and samples per piece), before the costlier steps
     check_weights(len(pieces) * (samples - 1), len(pieces))
-    joint_of = _joints(pieces, joint_distance)
+    uprights = {
+        k for k, p in enumerate(pieces) if upright and p.line.rectify and p.line.targets is None and near_vertical(p.line.start, p.line.end)
+    }
+    joint_of = _joints(pieces, joint_distance, uprights)
     pieces_of: dict[int, list[int]] = {}
     for k, piece in enumerate(pieces):
         pieces_of.setdefault(piece.handle, []).append(k)
-    solution = _rectify_all(handles, pieces, joint_of, t) if handles.options.rectify == "all" else None
+    solution = _rectify_all(handles, pieces, joint_of, t, uprights) if handles.options.rectify == "all" else None
     joint_rows: dict[int, dict[int, float]] = {}
     joint_points: dict[int, NDArray[np.float64]] = {}
     chains: list[tuple[int, ...]] = []
@@ -466,7 +485,9 @@ def _line_parts(
     return [(start, end, m)]
 
 
-def _rectify_all(handles: Handles, pieces: list[_Piece], joint_of: dict[tuple[int, int], int], t: NDArray) -> RectifySolution | None:
+def _rectify_all(
+    handles: Handles, pieces: list[_Piece], joint_of: dict[tuple[int, int], int], t: NDArray, uprights: set[int] | None = None
+) -> RectifySolution | None:
     """Sec. 3.4 for the rectified line pieces; the other handles take part as they are."""
     free = [p.line.rectify and p.line.targets is None for p in pieces]
     if not any(free):
@@ -477,7 +498,8 @@ def _rectify_all(handles: Handles, pieces: list[_Piece], joint_of: dict[tuple[in
         outputs = None
         if not free[k]:
             outputs = piece.line.moebius()(coords.geodesic(start, end, t))  # its targets, or the identity
-        bones.append(Bone(tuple(start), tuple(end), free[k], (joint_of.get((k, 0)), joint_of.get((k, 1))), outputs))
+        joints = (joint_of.get((k, 0)), joint_of.get((k, 1)))
+        bones.append(Bone(tuple(start), tuple(end), free[k], joints, outputs, free[k] and k in (uprights or set())))
     anchors = []
     for h in handles.handles:
         if isinstance(h, PointHandle):

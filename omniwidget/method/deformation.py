@@ -187,7 +187,7 @@ class Solved(Protocol):
 
 
 @one_blas_thread
-def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None = None) -> Deformation:
+def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None = None, upright: bool = False) -> Deformation:
     """The paper's method, from a handles document to the blended deformation of the sphere.
 
     One map for everything (no handles, one point or line, handles that do not move) needs
@@ -205,6 +205,10 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
         they are; when its controls are the same ones, its weights interpolated onto the new
         mesh start the solver (:func:`omniwidget.method.bbw.bbw`'s ``start``), which then
         needs fewer steps to the same weights.
+    upright : bool
+        The input is levelled: rectified lines within a degree of the vertical are made
+        vertical (:func:`~omniwidget.method.constraints.build_constraints`). A document with
+        ``options.up`` is solved so.
 
     Returns
     -------
@@ -217,10 +221,10 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
     turn = handles.options.levelling()
     if turn is not None:
         before = turned(previous, turn.inverse, levelled_handles(previous.handles)) if isinstance(previous, Deformation) else None
-        return turned(deform(levelled_handles(handles), samples=samples, previous=before), turn, handles)
+        return turned(deform(levelled_handles(handles), samples=samples, previous=before, upright=True), turn, handles)
     timings: dict[str, float] = {}
     lap = Laps(timings)
-    constraints = build_constraints(handles, samples=samples)
+    constraints = build_constraints(handles, samples=samples, upright=upright)
     lap("constraints")
     problems = _pole_lines(handles, constraints)
     maps = [c.moebius for c in constraints.controls]
