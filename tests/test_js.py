@@ -30,7 +30,8 @@ REPO = Path(__file__).resolve().parents[1]
 JS_TESTS = REPO / "tests" / "js"
 
 
-def _node() -> str:
+def node_command() -> str:
+    """The node executable; skipped without it, failed when the real-browser tests must run (CI)."""
     node = shutil.which("node")
     if node is None:
         if os.environ.get("OMNIWIDGET_BROWSER_TESTS") == "1":
@@ -114,7 +115,7 @@ def _cases(rng: np.random.Generator) -> dict:
 
 def test_the_javascript_tests_pass(tmp_path, rng):
     """Every test of every file in tests/js runs (none skipped: the Python cases are there) and passes."""
-    node = _node()
+    node = node_command()
     cases = tmp_path / "cases.json"
     cases.write_text(json.dumps(_cases(rng)))
     files = sorted(JS_TESTS.glob("*.test.mjs"))  # node --test tests/js/, the files named: Node 22 reads arguments as globs, not folders
@@ -135,7 +136,7 @@ def test_the_bundle_is_one_module_node_can_load(tmp_path):
     """editor.py's bundle (editor.js with the modules it imports, and theirs, inlined) is one ES module with ``render``."""
     from omniwidget.widget.editor import _bundle
 
-    node = _node()
+    node = node_command()
     bundle = _bundle()
     assert not re.search(r"^\s*import\s", bundle, re.M), "an import left in the bundle"
     path = tmp_path / "editor.bundle.mjs"

@@ -180,11 +180,10 @@ def test_orientation_is_read_by_pillow_and_malformed_exif_reads_as_1():
     assert metadata.orientation(b"nonsense") == 1
 
 
+@needs_exiftool
 def test_the_exif_is_patched_in_place_and_its_thumbnail_link_cut(tmp_path):
     path = tmp_path / "a.jpg"
     write_image(path, synthetic_room(128, seed=3).image)
-    if EXIFTOOL is None:
-        pytest.skip("exiftool is not installed")
     _tag(path, width=128, height=64)
     exif = metadata.read_metadata(path).exif
     patched = metadata.output_metadata(metadata.Metadata(exif=exif), 300, 150).exif

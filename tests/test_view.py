@@ -19,6 +19,7 @@ from omniwidget.evaluate import baselines
 from omniwidget.io.images import read_image, write_image
 from omniwidget.raster import perspective as camera
 from omniwidget.sphere import coords
+from tests.test_js import node_command
 
 #: The discs' angular radius, degrees: about 4 px of the 2048 px panorama and of the stills.
 RADIUS = 0.7
@@ -207,13 +208,10 @@ def test_view_refuses_bad_files_in_one_line(pano, capsys):
 def test_the_editors_look_around_camera_is_this_one():
     """look.js's rays (the editor's look-around view) are the rays ow.view renders, pixel for pixel, to 1e-9 degrees."""
     import json
-    import shutil
     import subprocess
     from pathlib import Path
 
-    node = shutil.which("node")
-    if node is None:
-        pytest.skip("node is not installed")
+    node = node_command()  # skipped without node, failed when the browser tests must run
     look = (Path(__file__).resolve().parents[1] / "omniwidget" / "widget" / "static" / "look.js").as_uri()
     cameras = [(30.0, 10.0, 100.0, 41, 31), (-179.5, -20.0, 70.0, 40, 30), (45.0, 90.0, 60.0, 33, 20), (120.0, -90.0, 120.0, 20, 33)]
     script = (
