@@ -63,10 +63,20 @@ def _times(image: np.ndarray, repeat: int) -> tuple[float, float, ow.Straightene
     return statistics.median(made), statistics.median(warped), done
 
 
-def _line_figures(done: ow.Straightened) -> tuple[float, int]:
+def _row(done: ow.Straightened, made: float, warped: float, tilts: list[float]) -> dict:
+    """The figures every scene reports: lines used, worst tilt of ``tilts``, straightness, fold, p99, time."""
     lines = done.result.quality.lines
     shown = [v for v in lines if math.isfinite(v)]
-    return (max(shown) if shown else math.nan), len(lines) - len(shown)
+    return {
+        "lines": len(done.structure.used),
+        "vertical": max(tilts) if tilts else math.nan,
+        "straight": max(shown) if shown else math.nan,
+        "hidden": len(lines) - len(shown),
+        "fold": done.result.folds.area,
+        "p99": done.result.quality.distortion_p99,
+        "seconds": made,
+        "ratio": made / warped,
+    }
 
 
 def rooms(seeds: list[int], width: int, repeat: int) -> list[dict]:
@@ -76,22 +86,14 @@ def rooms(seeds: list[int], width: int, repeat: int) -> list[dict]:
         made, warped, done = _times(scene.image, repeat)
         placed = done.result.placed_map()
         tilts = [vertical_tilt(placed, line.start, line.end) for line in _vertical_edges(scene)]
-        worst, hidden = _line_figures(done)
-        q = done.result.quality
         row = {
             "seed": seed,
             "tilt": math.hypot(scene.pitch, scene.roll),
             "coverage": edge_coverage(scene, done.structure.used),
             "precision": edge_precision(scene, done.structure.used),
-            "lines": len(done.structure.used),
-            "vertical": max(tilts) if tilts else math.nan,
-            "straight": worst,
-            "hidden": hidden,
-            "fold": done.result.folds.area,
-            "p99": q.distortion_p99,
-            "seconds": made,
-            "ratio": made / warped,
+            **_row(done, made, warped, tilts),
         }
+        worst, hidden = row["straight"], row["hidden"]
         rows.append(row)
         print(
             f"room {seed:3d} (tilt {row['tilt']:4.1f}°): coverage {row['coverage']:.2f} precision {row['precision']:.2f} "
@@ -113,21 +115,8 @@ def photos(folder: Path, repeat: int) -> list[dict]:
         made, warped, done = _times(image, repeat)
         placed = done.result.placed_map()
         verticals = [vertical_tilt(placed, s.start, s.end) for s in done.structure.used if s.kind == "vertical"]
-        worst, hidden = _line_figures(done)
-        q = done.result.quality
-        row = {
-            "name": path.name,
-            "lines": len(done.structure.used),
-            "vertical": max(verticals) if verticals else math.nan,
-            "verticals": len(verticals),
-            "straight": worst,
-            "hidden": hidden,
-            "fold": done.result.folds.area,
-            "p99": q.distortion_p99,
-            "seconds": made,
-            "ratio": made / warped,
-            "summary": done.structure.summary(),
-        }
+        row = {"name": path.name, "verticals": len(verticals), "summary": done.structure.summary(), **_row(done, made, warped, verticals)}
+        worst, hidden = row["straight"], row["hidden"]
         rows.append(row)
         print(
             f"{path.name}: lines {row['lines']} ({row['verticals']} vertical, worst {row['vertical']:.3f}°) straight {worst:.2f} px "
