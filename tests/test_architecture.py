@@ -1,4 +1,5 @@
-"""The package's structure: layers that import only downwards, no import cycle, no private name used across modules.
+"""The package's structure: a graph of layers, each importing only the layers it names; no import cycle; no private
+name used across modules.
 
 Read from the source (every ``import`` statement, at module level or inside a function,
 since a lazy import is a dependency all the same; imports under ``TYPE_CHECKING`` are for
@@ -119,70 +120,130 @@ def test_no_private_name_is_imported_from_another_module():
     assert used == []
 
 
-#: The layers from the bottom up (README, Layout): a module imports its own layer and the ones below.
-LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    (
-        "plumbing",
-        (
-            "omniwidget._version",
-            "omniwidget.errors",
-            "omniwidget._checks",
-            "omniwidget._files",
-            "omniwidget._timing",
-            "omniwidget._blas",
-            "omniwidget._native",
-            "omniwidget._numba_kernels",
-        ),
+#: The layers and the modules each owns (the longest prefix that names a module decides its layer).
+LAYERS: dict[str, tuple[str, ...]] = {
+    "plumbing": (
+        "omniwidget._version",
+        "omniwidget.errors",
+        "omniwidget._checks",
+        "omniwidget._files",
+        "omniwidget._timing",
+        "omniwidget._blas",
+        "omniwidget._native",
+        "omniwidget._numba_kernels",
     ),
-    ("sphere", ("omniwidget.sphere",)),
-    ("document", ("omniwidget.document",)),
-    ("method", ("omniwidget.method",)),
-    ("raster", ("omniwidget.raster",)),
-    ("detect", ("omniwidget.detect",)),  # below evaluate: the "suggested" scene family is the detector's own lines
-    ("evaluate", ("omniwidget.evaluate", "omniwidget.evaluate.content_preserving")),
-    ("io", ("omniwidget.io", "omniwidget.data")),
-    ("app", ("omniwidget.app", "omniwidget.batch")),
-    ("widget and pane", ("omniwidget.widget", "omniwidget.viz", "omniwidget.__main__")),
-    ("the package's names", ("omniwidget",)),
-]
+    "sphere": ("omniwidget.sphere",),
+    "document": ("omniwidget.document",),
+    "method": ("omniwidget.method",),
+    "raster": ("omniwidget.raster",),
+    "detect": ("omniwidget.detect",),
+    "evaluate": ("omniwidget.evaluate",),
+    "io": ("omniwidget.io", "omniwidget.data"),
+    "app": ("omniwidget.app", "omniwidget.batch"),
+    "widget": ("omniwidget.widget",),
+    "viz": ("omniwidget.viz",),
+    "entry": ("omniwidget", "omniwidget.__main__"),
+}
 
-#: Imports upwards that are allowed, each inside a function and for a reason.
-UPWARDS = {
+_CORE = ("plumbing", "sphere", "document", "method", "raster")
+
+#: The allowed dependencies, a graph: each layer names every layer it may import (its own layer always).
+#: ``detect`` and ``evaluate`` are not siblings: ``evaluate`` stands on ``detect`` because its "suggested"
+#: scene family is made of the detector's own lines, and the detector needs no figure or scene. ``io`` reads
+#: and writes and stands on the core only. ``widget`` and ``viz`` are siblings: neither imports the other.
+ALLOWED: dict[str, frozenset[str]] = {
+    "plumbing": frozenset(),
+    "sphere": frozenset({"plumbing"}),
+    "document": frozenset({"plumbing", "sphere"}),
+    "method": frozenset({"plumbing", "sphere", "document"}),
+    "raster": frozenset({"plumbing", "sphere", "document", "method"}),
+    "detect": frozenset(_CORE),
+    "evaluate": frozenset({*_CORE, "detect"}),
+    "io": frozenset(_CORE),
+    "app": frozenset({*_CORE, "detect", "evaluate", "io"}),
+    "widget": frozenset({*_CORE, "detect", "evaluate", "io", "app"}),
+    "viz": frozenset({*_CORE, "detect", "evaluate", "io", "app"}),
+    "entry": frozenset(LAYERS) - {"entry"},
+}
+
+#: Imports outside the graph that are allowed, each inside a function and for a reason.
+EXCEPTIONS = {
     ("omniwidget.raster.pipeline", "omniwidget.evaluate.quality"): "Result.quality measures a warp when first asked",
 }
 
 
-def _layer(module: str) -> int:
-    """Index in :data:`LAYERS` of the longest prefix that owns ``module``."""
-    best, owner = -1, ""
-    for i, (_, prefixes) in enumerate(LAYERS):
+def layer_of(module: str, layers: dict[str, tuple[str, ...]] = LAYERS) -> str | None:
+    """The layer whose longest prefix owns ``module``, or None when no layer does."""
+    best, owner = None, ""
+    for layer, prefixes in layers.items():
         for prefix in prefixes:
             if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > len(owner):
-                best, owner = i, prefix
+                best, owner = layer, prefix
     return best
 
 
+def forbidden_imports(
+    graph: dict[str, set[str]],
+    layers: dict[str, tuple[str, ...]] = LAYERS,
+    allowed: dict[str, frozenset[str]] = ALLOWED,
+    exceptions: dict[tuple[str, str], str] = EXCEPTIONS,
+) -> list[str]:
+    """Every import of ``graph`` (module -> modules it imports) that the layer graph ``allowed`` does not allow."""
+    found = []
+    for name, targets in sorted(graph.items()):
+        here = layer_of(name, layers)
+        for target in sorted(targets):
+            there = layer_of(target, layers)
+            if here is None or there is None:
+                found.append(f"{name} ({here}) imports {target} ({there}): a module without a layer")
+            elif there != here and there not in allowed[here] and (name, target) not in exceptions:
+                found.append(f"{name} ({here}) imports {target} ({there}), which {here} may not import")
+    return found
+
+
+def test_the_layer_graph_names_every_layer_and_no_cycle():
+    assert set(ALLOWED) == set(LAYERS)
+    assert all(allowed <= set(LAYERS) and layer not in allowed for layer, allowed in ALLOWED.items())
+    assert _cycles({layer: set(allowed) for layer, allowed in ALLOWED.items()}) == []
+
+
 def test_every_module_has_a_layer():
-    assert [m for m in MODULES if _layer(m) < 0] == []
-    assert _layer("omniwidget.method.bbw") == 3 and _layer("omniwidget.errors") == 0 and _layer("omniwidget") == len(LAYERS) - 1
+    assert [m for m in MODULES if layer_of(m) is None] == []
+    assert layer_of("omniwidget.method.bbw") == "method" and layer_of("omniwidget.errors") == "plumbing"
+    assert layer_of("omniwidget") == "entry" and layer_of("omniwidget.viz.pane") == "viz"
 
 
-def test_no_layer_imports_a_layer_above_it():
-    upward = [
-        f"{name} ({LAYERS[_layer(name)][0]}) imports {target} ({LAYERS[_layer(target)][0]})"
-        for name, targets in _graph().items()
-        for target in sorted(targets)
-        if _layer(target) > _layer(name) and (name, target) not in UPWARDS
-    ]
-    assert upward == []
+def test_no_module_imports_a_layer_its_layer_may_not_import():
+    assert forbidden_imports(_graph()) == []
 
 
 def test_the_sphere_document_and_method_layers_import_nothing_above_them_at_all():
     """The paper's maths can be read without the engine, the figures or the apps: not even a lazy import upwards."""
-    method = _layer("omniwidget.method")
-    assert [(a, b) for a, b in UPWARDS if _layer(a) <= method] == []
+    assert [(a, b) for a, b in EXCEPTIONS if layer_of(a) in ALLOWED["raster"]] == []
 
 
-def test_the_layer_check_catches_an_upward_import(tmp_path):
-    graph = {"omniwidget.sphere.coords": {"omniwidget.raster.pipeline"}}
-    assert [t for n, ts in graph.items() for t in ts if _layer(t) > _layer(n)] == ["omniwidget.raster.pipeline"]
+def test_the_layer_check_catches_upward_and_sibling_imports():
+    """The real check, on a synthetic graph: an upward import and the two pairs of siblings are caught, a downward
+    import, an import within a layer and the declared exception are not."""
+    graph = {
+        "omniwidget.sphere.coords": {"omniwidget.raster.pipeline", "omniwidget.sphere.moebius"},
+        "omniwidget.detect.lines": {"omniwidget.evaluate.scenes", "omniwidget.method.constraints"},
+        "omniwidget.viz.pane": {"omniwidget.widget.editor", "omniwidget.app.session"},
+        "omniwidget.widget.editor": {"omniwidget.viz.pane"},
+        "omniwidget.evaluate.scenes": {"omniwidget.detect.lines"},
+        "omniwidget.raster.pipeline": {"omniwidget.evaluate.quality"},
+        "omniwidget.io.images": {"omniwidget.app.cli"},
+        "elsewhere": {"omniwidget.sphere.coords"},
+    }
+    found = forbidden_imports(graph)
+    assert [line.split(" (")[0] + " -> " + line.split(" imports ")[1].split(" (")[0] for line in found] == [
+        "elsewhere -> omniwidget.sphere.coords",
+        "omniwidget.detect.lines -> omniwidget.evaluate.scenes",
+        "omniwidget.io.images -> omniwidget.app.cli",
+        "omniwidget.sphere.coords -> omniwidget.raster.pipeline",
+        "omniwidget.viz.pane -> omniwidget.widget.editor",
+        "omniwidget.widget.editor -> omniwidget.viz.pane",
+    ]
+    assert forbidden_imports(graph, exceptions={}) == sorted(
+        [*found, "omniwidget.raster.pipeline (raster) imports omniwidget.evaluate.quality (evaluate), which raster may not import"]
+    )
