@@ -147,7 +147,7 @@ def bench_mesh(name: str, v: NDArray[np.float64], f: NDArray[np.int64], layout: 
     b, bc = point_handles(v) if layout == "points" else line_handles(v, f)
     print(f"\n== {name}: {len(v)} vertices, {len(f)} faces, {bc.shape[1]} {layout} handles ({len(b)} constrained vertices) ==")
     ours, (w, info) = timed(lambda: bbw_module._bbw(v, f, b, bc), repeat, warmup=1)
-    ours_1, _ = timed(lambda: bbw_module._bbw(v, f, b, bc, workers=1), repeat, warmup=0)
+    ours_1, _ = timed(lambda: bbw_module._bbw(v, f, b, bc, bbw_module._Settings(workers=1)), repeat, warmup=0)
     levels = " -> ".join(str(lv["vertices"]) for lv in reversed(info["levels"]))
     finest = info["levels"][-1]
     print(f"omniwidget bbw ({info['workers']} threads): {describe(ours)}")

@@ -455,7 +455,7 @@ def _hierarchy(v: FloatArray, f: IntArray, b: IntArray) -> list[_Level]:
 
 
 # --- bbw ---------------------------------------------------------------------------------
-def bbw(
+def bbw(  # noqa: PLR0913 - the mesh, its constraints and the solve's documented keyword knobs (libigl's bbw and its options)
     V: ArrayLike,
     F: ArrayLike,
     b: ArrayLike,
@@ -583,7 +583,30 @@ def bbw(
         return igl_bbw(V, F, b, bc, max_iter=max_iter)
     if solver != "active-set":
         raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
-    return _bbw(V, F, b, bc, tol=tol, max_iter=max_iter, multilevel=multilevel, workers=workers, start=start)[0]
+    settings = _Settings(tol=tol, max_iter=max_iter, multilevel=multilevel, workers=workers)
+    return _bbw(V, F, b, bc, settings, start)[0]
+
+
+@dataclass(frozen=True)
+class _Settings:
+    """The active-set solve's knobs: :func:`bbw`'s parameters of the same names."""
+
+    tol: float = 1e-9
+    max_iter: int = 100
+    multilevel: bool = True
+    workers: int | None = None
+
+    def checked(self, k: int) -> _Settings:
+        """These settings validated (the errors name the parameter), ``workers`` resolved for ``k`` handles."""
+        try:
+            tol = float(self.tol)
+        except (TypeError, ValueError):
+            raise ValueError(f"tol must be a number in (0, 1e-3], got {self.tol!r}") from None
+        if not (0.0 < tol <= 1e-3):
+            raise ValueError(f"tol must be a number in (0, 1e-3], got {tol!r}")
+        max_iter = whole_number(self.max_iter, "max_iter", 1)
+        workers = min(k, os.cpu_count() or 1) if self.workers is None else min(k, whole_number(self.workers, "workers", 1))
+        return _Settings(tol, max_iter, self.multilevel, workers)
 
 
 def _bbw(
@@ -591,78 +614,36 @@ def _bbw(
     F: ArrayLike,
     b: ArrayLike,
     bc: ArrayLike,
-    *,
-    tol: float = 1e-9,
-    max_iter: int = 100,
-    multilevel: bool = True,
-    workers: int | None = None,
+    settings: _Settings | None = None,
     start: ArrayLike | None = None,
 ) -> tuple[FloatArray, dict]:
-    """:func:`bbw` and a record of the work done (levels, steps, factorizations, seconds)."""
+    """:func:`bbw` and a record of the work done (levels, steps, factorizations, seconds).
+
+    The levels are solved coarsest first, each from the weights of the one below it
+    (:func:`_level_guess`), the input mesh last; only its handles may fail to converge.
+    """
     v, f = as_mesh(V, F)
     n = v.shape[0]
     idx, values = as_constraints(n, b, bc)
-    try:
-        tol = float(tol)
-    except (TypeError, ValueError):
-        raise ValueError(f"tol must be a number in (0, 1e-3], got {tol!r}") from None
-    if not (0.0 < tol <= 1e-3):
-        raise ValueError(f"tol must be a number in (0, 1e-3], got {tol!r}")
-    max_iter = whole_number(max_iter, "max_iter", 1)
     k = values.shape[1]
-    workers = min(k, os.cpu_count() or 1) if workers is None else min(k, whole_number(workers, "workers", 1))
-    n_comp, label = connected_components(_adjacency(n, f), directed=False)
-    if n_comp > 1:
-        missing = np.setdiff1d(np.arange(n_comp), label[idx])
-        if missing.size:
-            raise ValueError(f"the mesh has {n_comp} connected components and {missing.size} of them have no vertex in b")
-
-    if start is not None:
-        start = np.asarray(start, dtype=np.float64)
-        if start.shape != (n, k) or not np.all(np.isfinite(start)):
-            raise ValueError(f"start must be a finite array of shape {(n, k)} (a guess of the weights), got {start.shape}")
-    levels = _hierarchy(v, f, idx) if multilevel and start is None else [_Level(v, f, idx)]
-    info: dict = {"levels": [], "workers": workers}
+    settings = (settings or _Settings()).checked(k)
+    _check_components(n, f, idx)
+    guess = _checked_start(start, n, k)
+    levels = _hierarchy(v, f, idx) if settings.multilevel and guess is None else [_Level(v, f, idx)]
+    info: dict = {"levels": [], "workers": settings.workers}
     w: FloatArray | None = None
     failed: list[int] = []
     for depth in range(len(levels) - 1, -1, -1):
-        level = levels[depth]
         t0 = time.perf_counter()
-        prob = _problem(level.vertices, level.faces, level.b, values)
-        x = np.empty((prob.free.size, k))
-        results: list[_HandleResult] = []
-        if prob.free.size:
-            if w is None:
-                guess = start[prob.free] if start is not None else _factor(prob.q).solve(prob.rhs)
-            else:
-                prolong = levels[depth + 1].prolong
-                if prolong is None:  # _hierarchy gives every coarser level one
-                    raise RuntimeError(f"level {depth + 1} of the multilevel solve has no prolongation")
-                guess = (prolong @ w)[prob.free]
-            steps = max_iter if depth == 0 else COARSE_STEPS
-
-            def run(j: int, guess: FloatArray = guess, prob: _Problem = prob, steps: int = steps) -> _HandleResult:
-                if start is not None:  # a drag leaves the handles far from what moved as they were
-                    x = np.clip(guess[:, j], 0.0, 1.0)
-                    if _already_solved(prob, j, x, tol):
-                        return _HandleResult(x, True, 0, 0)
-                return _solve_handle(prob, j, guess[:, j] <= tol, guess[:, j] >= 1.0 - tol, tol, steps)
-
-            if workers > 1:
-                with ThreadPoolExecutor(workers) as pool:
-                    results = list(pool.map(run, range(k)))
-            else:
-                results = [run(j) for j in range(k)]
-            for j, res in enumerate(results):
-                x[:, j] = res.x
-                if depth == 0 and not res.converged:
-                    failed.append(j)
-        w = np.empty((level.vertices.shape[0], k))
-        w[level.b] = values
-        w[prob.free] = np.clip(x, 0.0, 1.0)
+        prob = _problem(levels[depth].vertices, levels[depth].faces, levels[depth].b, values)
+        steps = settings.max_iter if depth == 0 else COARSE_STEPS
+        results = _solve_handles(prob, _level_guess(levels, depth, prob, w, guess), settings, steps, warm=guess is not None)
+        w = _level_weights(levels[depth], prob, values, results)
+        if depth == 0:
+            failed = [j for j, res in enumerate(results) if not res.converged]
         info["levels"].append(
             {
-                "vertices": level.vertices.shape[0],
+                "vertices": levels[depth].vertices.shape[0],
                 "steps": [res.steps for res in results],
                 "factorizations": [res.factorizations for res in results],
                 "seconds": time.perf_counter() - t0,
@@ -670,10 +651,79 @@ def _bbw(
         )
     if failed:
         warnings.warn(
-            f"bbw: the active-set iterations did not converge in max_iter={max_iter} steps for handles {failed}; "
+            f"bbw: the active-set iterations did not converge in max_iter={settings.max_iter} steps for handles {failed}; "
             "their weights are the last iterate clipped to [0, 1]",
             RuntimeWarning,
             stacklevel=3,
         )
     assert w is not None
     return w, info
+
+
+def _check_components(n: int, f: IntArray, idx: IntArray) -> None:
+    """Raise unless every connected component of the mesh has a constrained vertex (else its weights are free)."""
+    n_comp, label = connected_components(_adjacency(n, f), directed=False)
+    if n_comp > 1:
+        missing = np.setdiff1d(np.arange(n_comp), label[idx])
+        if missing.size:
+            raise ValueError(f"the mesh has {n_comp} connected components and {missing.size} of them have no vertex in b")
+
+
+def _checked_start(start: ArrayLike | None, n: int, k: int) -> FloatArray | None:
+    """``start`` as a finite float64 array of shape ``(n, k)``, or None."""
+    if start is None:
+        return None
+    out = np.asarray(start, dtype=np.float64)
+    if out.shape != (n, k) or not np.all(np.isfinite(out)):
+        raise ValueError(f"start must be a finite array of shape {(n, k)} (a guess of the weights), got {out.shape}")
+    return out
+
+
+def _level_guess(levels: list[_Level], depth: int, prob: _Problem, coarser: FloatArray | None, start: FloatArray | None) -> FloatArray:
+    """The free weights a level's active sets start from, ``(free, k)``.
+
+    The coarser level's weights interpolated onto this one, or on the coarsest level the
+    caller's ``start``, else the unconstrained solution (one factorization, ``k`` right-hand
+    sides). Empty when the level has no free vertex.
+    """
+    if not prob.free.size:
+        return np.empty((0, prob.rhs.shape[1]))
+    if coarser is None:
+        return start[prob.free] if start is not None else _factor(prob.q).solve(prob.rhs)
+    prolong = levels[depth + 1].prolong
+    if prolong is None:  # _hierarchy gives every coarser level one
+        raise RuntimeError(f"level {depth + 1} of the multilevel solve has no prolongation")
+    return (prolong @ coarser)[prob.free]
+
+
+def _solve_handles(prob: _Problem, guess: FloatArray, settings: _Settings, steps: int, *, warm: bool) -> list[_HandleResult]:
+    """Each handle's box-constrained problem from its column of ``guess``, in ``settings.workers`` threads.
+
+    With ``warm`` (the guess is the caller's start) a handle whose start already satisfies
+    its optimality conditions is taken as it is, without a solve.
+    """
+    if not prob.free.size:
+        return []
+    tol = settings.tol
+
+    def run(j: int) -> _HandleResult:
+        if warm:  # a drag leaves the handles far from what moved as they were
+            x = np.clip(guess[:, j], 0.0, 1.0)
+            if _already_solved(prob, j, x, tol):
+                return _HandleResult(x, True, 0, 0)
+        return _solve_handle(prob, j, guess[:, j] <= tol, guess[:, j] >= 1.0 - tol, tol, steps)
+
+    k = guess.shape[1]
+    if settings.workers is not None and settings.workers > 1:
+        with ThreadPoolExecutor(settings.workers) as pool:
+            return list(pool.map(run, range(k)))
+    return [run(j) for j in range(k)]
+
+
+def _level_weights(level: _Level, prob: _Problem, values: FloatArray, results: list[_HandleResult]) -> FloatArray:
+    """A level's weights at every vertex: ``values`` at the constrained ones, the solved ones clipped to ``[0, 1]``."""
+    w = np.empty((level.vertices.shape[0], values.shape[1]))
+    w[level.b] = values
+    for j, res in enumerate(results):
+        w[prob.free, j] = np.clip(res.x, 0.0, 1.0)
+    return w
