@@ -7,6 +7,9 @@ Shared by the handles document, the image writers, the videos and the command li
   use for as long as its descriptor is open (:func:`fcntl.flock`; the lock goes with the
   process however it ends, ``kill -9`` included);
 - :func:`commit` it renamed over the output, synced to the disk first (the file, then the folder);
+- :func:`atomic_output` the two together as a context manager: the block writes the temporary
+  file, which is renamed over the output when the block ends normally and removed when it
+  raises (an error, a cancel, Ctrl+C);
 - :func:`atomic_write_bytes` bytes written so;
 - :func:`remove_leftovers` what a killed run left beside an output: files named as ours
   whose lock is free (a run still writing holds its lock, and its file is left alone);
@@ -23,6 +26,7 @@ import secrets
 import stat
 from collections.abc import Iterable
 from pathlib import Path
+from types import TracebackType
 
 from .errors import ImageError
 
@@ -31,7 +35,7 @@ try:
 except ImportError:  # Windows: a file in use cannot be removed there anyway
     fcntl = None  # type: ignore[assignment]
 
-__all__ = ["atomic_write_bytes", "commit", "refuse_overwrites", "remove_leftovers", "same_file", "temporary_file"]
+__all__ = ["AtomicOutput", "atomic_output", "atomic_write_bytes", "commit", "refuse_overwrites", "remove_leftovers", "same_file", "temporary_file"]
 
 #: A path and what it is, as a message names it: ``("--map", Path("in.npy"))``, ``("the input", ...)``.
 Named = tuple[str, str | os.PathLike[str]]
@@ -198,6 +202,82 @@ def commit(fd: int, tmp: str | os.PathLike[str], path: str | os.PathLike[str]) -
         os.close(folder)
 
 
+class AtomicOutput:
+    """A temporary file standing for an output until it is complete: see :func:`atomic_output`.
+
+    Attributes
+    ----------
+    target : Path
+        The output.
+    path : Path
+        The temporary file beside it, to be written by the ``with`` block.
+    fd : int
+        Its descriptor, open for reading and writing; it holds the file's lock until the block ends.
+    """
+
+    def __init__(self, target: Path, suffix: str, leftovers: bool) -> None:
+        self.target = target
+        if leftovers:
+            remove_leftovers(target)
+        self.fd, self.path = temporary_file(target, suffix)
+
+    def __enter__(self) -> AtomicOutput:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None) -> None:
+        try:
+            if kind is None:
+                commit(self.fd, self.path, self.target)
+        except BaseException:
+            self.path.unlink(missing_ok=True)
+            raise
+        else:
+            if kind is not None:
+                self.path.unlink(missing_ok=True)
+        finally:
+            os.close(self.fd)
+
+
+def atomic_output(path: str | os.PathLike[str], suffix: str = _SUFFIX, *, leftovers: bool = True) -> AtomicOutput:
+    """An output written whole or not at all: a temporary file beside it, renamed over it when the ``with`` block ends.
+
+    The temporary file is made (and locked) at once, as :func:`open` opens its file, so the
+    call belongs in the ``with`` statement itself. When the block ends normally the file is
+    synced and renamed over ``path`` (:func:`commit`); when it raises (an error, a cancel,
+    :class:`KeyboardInterrupt`), or the rename fails, it is removed and the exception goes on.
+    Its descriptor is closed either way.
+
+    Parameters
+    ----------
+    path : path-like
+        The output.
+    suffix : str
+        The end of the temporary file's name (:func:`temporary_file`).
+    leftovers : bool
+        Remove first what killed runs left beside ``path`` (:func:`remove_leftovers`).
+
+    Returns
+    -------
+    AtomicOutput
+        Its ``path`` is the temporary file to write (by name, or through its ``fd``).
+
+    Raises
+    ------
+    OSError
+        If no temporary file can be made beside ``path``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> with atomic_output(folder / "out.txt") as out:
+    ...     _ = out.path.write_text("whole")
+    >>> (folder / "out.txt").read_text(), sorted(p.name for p in folder.iterdir())
+    ('whole', ['out.txt'])
+    """
+    return AtomicOutput(Path(path), suffix, leftovers)
+
+
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder, synced, and a rename.
 
@@ -212,20 +292,11 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
         mode = path.stat().st_mode & 0o7777
     except FileNotFoundError:
         mode = 0o666 & ~_UMASK
-    if os.path.abspath(path) not in _cleaned:
-        remove_leftovers(path)
-    fd, tmp = temporary_file(path)
-    try:
-        os.fchmod(fd, mode)
+    with atomic_output(path, leftovers=os.path.abspath(path) not in _cleaned) as out:
+        os.fchmod(out.fd, mode)
         view = memoryview(data)
         while view:
-            view = view[os.write(fd, view) :]
-        commit(fd, tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    finally:
-        os.close(fd)
+            view = view[os.write(out.fd, view) :]
 
 
 def remove_leftovers(*paths: str | os.PathLike[str]) -> list[Path]:

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import SUPPORTED_DTYPES, check_image, check_panorama, require_regular_file
-from .._files import atomic_write_bytes, commit, remove_leftovers, temporary_file
+from .._files import AtomicOutput, atomic_output, atomic_write_bytes
 from ..errors import ImageError, NotRegularFileError
 from . import large, metadata
 from .large import REDUCE_ROWS, ReadPlan, plan_read, read_reduced
@@ -991,8 +991,6 @@ def _reduction(
 def _read_image(
     path: Path, *, orientation: bool, width: int | None, warp: bool, reduce: bool = True, streamed: bool = False, place: bool = True
 ) -> NDArray:
-    import cv2
-
     path = Path(path)
     if path.is_dir():
         raise ImageError(f"{path}: is a folder, not an image file")
@@ -1011,29 +1009,51 @@ def _read_image(
     kind = _format(data)
     if kind == "npy":
         return _read_npy(path, data, header)
-    problem, exif, size = None, None, None
+    exif, size = _checked_structure(path, kind, data)
+    image = _decoded(path, data, kind, size, factor, header)
+    if orientation and kind in ("JPEG", "PNG", "WebP"):
+        image = _oriented(image, metadata.orientation(exif))  # Pillow reads the EXIF block
+    return _placed(path, image, data if kind in ("JPEG", "PNG", "WebP", "TIFF") else None) if place else image
+
+
+def _structure(kind: str | None, data: bytes) -> tuple[str | None, bytes | None, tuple[int, int] | None]:
+    """What is wrong with the file's structure (None if nothing), its EXIF block and the size its header says, by format."""
     if kind == "JPEG":
         problem, exif, size = _jpeg_structure(data)
         if problem == "truncated":
             problem = "the JPEG data ends before its end-of-image marker"
         elif problem == "damaged":
             problem = "damaged: a JPEG segment has an impossible length"
-    elif kind == "PNG":
-        problem, exif, size = _png_structure(data)
-    elif kind == "WebP":
-        problem, exif = _webp_structure(data)
-    elif kind == "TIFF":
-        problem = _tiff_structure(data)
-    elif kind == "BMP":
+        return problem, exif, size
+    if kind == "PNG":
+        return _png_structure(data)
+    if kind == "WebP":
+        return (*_webp_structure(data), None)
+    if kind == "TIFF":
+        return _tiff_structure(data), None, None
+    if kind == "BMP":
         declared = int.from_bytes(data[2:6], "little")
         if declared > len(data):
-            problem = f"the BMP data is {len(data)} bytes, its header says {declared}"
+            return f"the BMP data is {len(data)} bytes, its header says {declared}", None, None
+    return None, None, None
+
+
+def _checked_structure(path: Path, kind: str | None, data: bytes) -> tuple[bytes | None, tuple[int, int] | None]:
+    """The file's EXIF block and header size, once its structure is whole; else an ImageError saying it is cut short or damaged."""
+    problem, exif, size = _structure(kind, data)
     if problem is not None:
         if problem.startswith("damaged"):
             raise ImageError(f"{path}: the file is {problem}")
         raise ImageError(f"{path}: the file looks truncated ({problem}); was it copied or downloaded whole?")
+    return exif, size
+
+
+def _decoded(path: Path, data: bytes, kind: str | None, size: tuple[int, int] | None, factor: int, header: ImageHeader | None) -> NDArray:
+    """OpenCV's decoding of ``data`` (reduced by ``factor`` for a JPEG), in RGB(A) order; an ImageError saying why it cannot."""
+    import cv2
+
     flags = cv2.IMREAD_UNCHANGED
-    if factor > 1 and header is not None:  # a JPEG decoded smaller; OpenCV must not turn it too (done below)
+    if factor > 1 and header is not None:  # a JPEG decoded smaller; OpenCV must not turn it too (done by the caller)
         flags = getattr(cv2, _REDUCTIONS[factor][1 if len(header.shape) == 2 else 0]) | cv2.IMREAD_IGNORE_ORIENTATION
     try:
         image = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
@@ -1050,10 +1070,7 @@ def _read_image(
             raise ImageError(f"{path}: a damaged {kind} file (OpenCV cannot decode it)")
         hint = " (it looks like a text file)" if _looks_like_text(data[:512]) else ""
         raise ImageError(f"{path}: not an image OpenCV can decode{hint}")
-    image = _swap_red_blue(image)  # OpenCV's BGR(A) to RGB(A)
-    if orientation and kind in ("JPEG", "PNG", "WebP"):
-        image = _oriented(image, metadata.orientation(exif))  # Pillow reads the EXIF block
-    return _placed(path, image, data if kind in ("JPEG", "PNG", "WebP", "TIFF") else None) if place else image
+    return _swap_red_blue(image)  # OpenCV's BGR(A) to RGB(A)
 
 
 def _placed(path: Path, image: NDArray, data: bytes | Path | None) -> NDArray:
@@ -1307,75 +1324,100 @@ def write_image_strips(
     shape, dtype = tuple(int(s) for s in shape), np.dtype(dtype)
     check_writable(path, np.empty((0, *shape[1:]), dtype))
     suffix = path.suffix.lower()
-
-    def checked() -> Iterator[NDArray]:
-        done = 0
-        for strip in strips:
-            if strip.shape[1:] != shape[1:] or strip.dtype != dtype or done + strip.shape[0] > shape[0]:
-                raise ImageError(f"{path}: a strip of {strip.shape} {strip.dtype} does not fit an image of {shape} {dtype} at row {done}")
-            done += strip.shape[0]
-            yield strip
-            if progress is not None:
-                progress(done)
-        if done != shape[0]:
-            raise ImageError(f"{path}: the strips gave {done} of the image's {shape[0]} rows")
-
-    def fill(out: NDArray) -> NDArray:
-        row = 0
-        for strip in checked():
-            out[row : row + strip.shape[0]] = strip
-            row += strip.shape[0]
-        return out
-
+    rows = _checked_strips(path, shape, dtype, strips, progress)
     if suffix not in STRIP_SUFFIXES:
-        write_image(path, fill(np.empty(shape, dtype)), meta)
+        write_image(path, _gathered(rows, np.empty(shape, dtype)), meta)
         return
     meta = meta or metadata.Metadata()
     if suffix == ".npy":
         large.check_free_disk(path.parent, math.prod(shape) * dtype.itemsize, f"{path}: a {' x '.join(map(str, shape))} {dtype} array")
-    remove_leftovers(path)
-    fd, tmp = temporary_file(path)
+    output = atomic_output(path)
     try:
-        if suffix in (".npy", ".png"):
-            with open(fd, "wb", closefd=False) as fh:
-                if suffix == ".png":
-                    large.write_png_strips(fh, shape, dtype, checked(), chunks=metadata.png_chunks(meta))
-                else:
-                    np.lib.format.write_array_header_2_0(fh, {"descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False, "shape": shape})
-                    for strip in checked():
-                        fh.write(np.ascontiguousarray(strip).data)
-        elif suffix in (".jpg", ".jpeg"):
-            large.write_jpeg_strips(tmp, shape, checked(), segments=metadata.jpeg_segments(meta))
-        else:
-            import tifffile
-
-            # as OpenCV writes them (so read_image gives the strips back): gray + alpha as RGBA, the fourth channel
-            # "unspecified" (OpenCV reads a gray + alpha tiled TIFF not at all, and RGB of "unassalpha" premultiplied)
-            two = len(shape) == 3 and shape[2] == 2
-            layout = (*shape[:2], 4) if two else shape
-            photometric = "rgb" if len(layout) == 3 and layout[2] in (3, 4) else "minisblack"
-            extras = "unspecified" if len(layout) == 3 and layout[2] == 4 else None
-            tiles = _tiles((strip[..., [0, 0, 0, 1]] if two else strip for strip in checked()), TIFF_TILE)
-            tifffile.imwrite(
-                tmp,
-                tiles,
-                shape=layout,
-                dtype=dtype,
-                bigtiff=True,
-                photometric=photometric,
-                extrasamples=extras,
-                tile=(TIFF_TILE, TIFF_TILE),
-                compression="zlib",
-                compressionargs={"level": 1},
-                maxworkers=min(os.cpu_count() or 1, 4),  # tiles deflated in threads
-                extratags=metadata.tiff_tags(meta),
-            )
-        commit(fd, tmp, path)
+        with output:
+            _STRIP_WRITERS[suffix](output, shape, dtype, rows, meta)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
         raise ImageError(f"{path}: cannot write the file ({exc.strerror or exc})") from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    finally:
-        os.close(fd)
+
+
+def _checked_strips(
+    path: Path, shape: tuple[int, ...], dtype: np.dtype, strips: Iterable[NDArray], progress: Callable[[int], None] | None
+) -> Iterator[NDArray]:
+    """The strips as they come, each checked to fit the image's next rows, and ``progress`` told after each."""
+    done = 0
+    for strip in strips:
+        if strip.shape[1:] != shape[1:] or strip.dtype != dtype or done + strip.shape[0] > shape[0]:
+            raise ImageError(f"{path}: a strip of {strip.shape} {strip.dtype} does not fit an image of {shape} {dtype} at row {done}")
+        done += strip.shape[0]
+        yield strip
+        if progress is not None:
+            progress(done)
+    if done != shape[0]:
+        raise ImageError(f"{path}: the strips gave {done} of the image's {shape[0]} rows")
+
+
+def _gathered(strips: Iterable[NDArray], out: NDArray) -> NDArray:
+    """The strips copied into ``out``, top to bottom."""
+    row = 0
+    for strip in strips:
+        out[row : row + strip.shape[0]] = strip
+        row += strip.shape[0]
+    return out
+
+
+def _npy_strips(output: AtomicOutput, shape: tuple[int, ...], dtype: np.dtype, strips: Iterator[NDArray], meta: metadata.Metadata) -> None:
+    """A ``.npy`` header, then the rows as they come (the file ``np.load`` memory-maps)."""
+    with open(output.fd, "wb", closefd=False) as fh:
+        np.lib.format.write_array_header_2_0(fh, {"descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False, "shape": shape})
+        for strip in strips:
+            fh.write(np.ascontiguousarray(strip).data)
+
+
+def _png_strips(output: AtomicOutput, shape: tuple[int, ...], dtype: np.dtype, strips: Iterator[NDArray], meta: metadata.Metadata) -> None:
+    """A PNG deflated as the strips come (:func:`omniwidget.io.large.write_png_strips`)."""
+    with open(output.fd, "wb", closefd=False) as fh:
+        large.write_png_strips(fh, shape, dtype, strips, chunks=metadata.png_chunks(meta))
+
+
+def _jpeg_strips(output: AtomicOutput, shape: tuple[int, ...], dtype: np.dtype, strips: Iterator[NDArray], meta: metadata.Metadata) -> None:
+    """A JPEG encoded by libvips from the rows held on disk (:func:`omniwidget.io.large.write_jpeg_strips`)."""
+    large.write_jpeg_strips(output.path, shape, strips, segments=metadata.jpeg_segments(meta))
+
+
+def _tiff_strips(output: AtomicOutput, shape: tuple[int, ...], dtype: np.dtype, strips: Iterator[NDArray], meta: metadata.Metadata) -> None:
+    """A tiled BigTIFF written a row of tiles at a time, as OpenCV writes its channels (so :func:`read_image` gives the strips back).
+
+    Gray + alpha is written as RGBA with the fourth channel "unspecified": OpenCV reads a gray
+    + alpha tiled TIFF not at all, and the RGB of "unassalpha" premultiplied.
+    """
+    import tifffile
+
+    two = len(shape) == 3 and shape[2] == 2
+    layout = (*shape[:2], 4) if two else shape
+    photometric = "rgb" if len(layout) == 3 and layout[2] in (3, 4) else "minisblack"
+    extras = "unspecified" if len(layout) == 3 and layout[2] == 4 else None
+    tiles = _tiles((strip[..., [0, 0, 0, 1]] if two else strip for strip in strips), TIFF_TILE)
+    tifffile.imwrite(
+        output.path,
+        tiles,
+        shape=layout,
+        dtype=dtype,
+        bigtiff=True,
+        photometric=photometric,
+        extrasamples=extras,
+        tile=(TIFF_TILE, TIFF_TILE),
+        compression="zlib",
+        compressionargs={"level": 1},
+        maxworkers=min(os.cpu_count() or 1, 4),  # tiles deflated in threads
+        extratags=metadata.tiff_tags(meta),
+    )
+
+
+#: How each suffix of :data:`STRIP_SUFFIXES` is written strip by strip into the temporary file.
+_STRIP_WRITERS: dict[str, Callable[[AtomicOutput, tuple[int, ...], np.dtype, Iterator[NDArray], metadata.Metadata], None]] = {
+    ".npy": _npy_strips,
+    ".png": _png_strips,
+    ".jpg": _jpeg_strips,
+    ".jpeg": _jpeg_strips,
+    ".tif": _tiff_strips,
+    ".tiff": _tiff_strips,
+}
