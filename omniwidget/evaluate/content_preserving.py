@@ -566,9 +566,36 @@ def solve_mesh(
         raise TypeError(f"weights must be a Weights, got {type(weights).__name__}")
     iterations = whole_number(iterations, "iterations", 1)
     lines = tuple(lines)
-    size, count = mesh.size, len(lines)
-    if fixed is None:
-        fixed = mesh.gauge()
+    system = _System(mesh, lines, weights, salience, mesh.gauge() if fixed is None else fixed)
+    normals = np.array([_normal(line.orientation) if line.orientation != "free" else (np.nan, np.nan) for line in lines]).reshape(-1, 2)
+    general = [k for k, line in enumerate(lines) if line.orientation == "free"]
+    solves = 0
+    if general:  # the first normals: from the solve without the general lines
+        held = [k for k in range(len(lines)) if k not in general]
+        x = system.solve(sp.vstack([system.base, system.line_rows(normals)[_rows_of(lines, held)]]).tocsr() if held else system.base)
+        solves += 1
+        for k, n in zip(general, system.fitted_normals(general, x), strict=True):
+            normals[k] = n
+    x = system.solve(sp.vstack([system.base, system.line_rows(normals)]).tocsr())
+    solves += 1
+    while general and solves < iterations:
+        if _turn_normals(normals, general, system.fitted_normals(general, x)) <= ORIENTATION_TOLERANCE:
+            break
+        x = system.solve(sp.vstack([system.base, system.line_rows(normals)]).tocsr(), reuse=True)
+        solves += 1
+    positions = system.positions(x)
+    energies = {
+        "conformality": weights.conformality**2 * conformality_energy(mesh, positions, salience),
+        "smoothness": weights.smoothness**2 * smoothness_energy(mesh, positions, salience),
+        "lines": weights.lines**2 * sum(line_energy(mesh, positions, line, n) for line, n in zip(lines, normals, strict=True)),
+    }
+    return MeshSolution(mesh, positions, lines, normals, solves, energies)
+
+
+def _known_values(
+    size: int, count: int, fixed: dict[int, tuple[float | None, float | None]]
+) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """The unknowns' fixed values (0 where free) and which are free: ``u`` per vertex, ``v`` per vertex, one offset per line."""
     known = np.full(2 * size + count, np.nan)
     for vertex, (u, v) in fixed.items():
         if not (isinstance(vertex, int | np.integer) and 0 <= vertex < size):
@@ -579,81 +606,102 @@ def solve_mesh(
             known[size + vertex] = v
     free = np.isnan(known)
     known[free] = 0.0
+    return known, free
 
-    s = _salience(mesh, salience)
-    base = sp.vstack([weights.conformality * _conformality_rows(mesh, s), weights.smoothness * _smoothness_rows(mesh, s)]).tocsr()
-    base = sp.hstack([base, sp.csr_matrix((base.shape[0], count))]).tocsr()
-    interpolations = [mesh.interpolation(line.mulat) for line in lines]
-    normals = np.array([_normal(line.orientation) if line.orientation != "free" else (np.nan, np.nan) for line in lines]).reshape(-1, 2)
 
-    def line_rows(normals: NDArray[np.float64]) -> sp.csr_matrix:
+def _turn_normals(normals: NDArray[np.float64], general: Sequence[int], fitted: Sequence[NDArray[np.float64]]) -> float:
+    """Set the general lines' normals to their refits, each signed like the last; the largest turn, radians."""
+    turned = 0.0
+    for k, n in zip(general, fitted, strict=True):
+        n = n if n @ normals[k] >= 0 else -n
+        turned = max(turned, float(np.arccos(np.clip(n @ normals[k], -1.0, 1.0))))
+        normals[k] = n
+    return turned
+
+
+class _System:
+    """:func:`solve_mesh`'s least-squares system: the energies' rows, the gauge, and the last factorisation.
+
+    The unknowns are ``u`` per vertex, ``v`` per vertex and one offset ``d`` per line; the
+    rows of ``E_c`` and ``E_s`` (:attr:`base`) stay, the lines' rows change with their normals.
+    """
+
+    def __init__(
+        self,
+        mesh: Mesh,
+        lines: tuple[Line, ...],
+        weights: Weights,
+        salience: ArrayLike | None,
+        fixed: dict[int, tuple[float | None, float | None]],
+    ) -> None:
+        self.size, self.lines, self.weight = mesh.size, lines, weights.lines
+        count = len(lines)
+        self.known, self.free = _known_values(mesh.size, count, fixed)
+        s = _salience(mesh, salience)
+        base = sp.vstack([weights.conformality * _conformality_rows(mesh, s), weights.smoothness * _smoothness_rows(mesh, s)]).tocsr()
+        self.base = sp.hstack([base, sp.csr_matrix((base.shape[0], count))]).tocsr()
+        self.interpolations = [mesh.interpolation(line.mulat) for line in lines]
+        self.factor: list[Any] = []  # the last factorisation, and the solution it gave
+
+    def positions(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The vertices' ``(u, v)`` in a solution ``x``, shape (size, 2)."""
+        return np.stack([x[: self.size], x[self.size : 2 * self.size]], axis=1)
+
+    def fitted_normals(self, which: Sequence[int], x: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        """Lines ``which``'s normals fitted to their samples' positions in ``x`` (unsigned)."""
+        positions = self.positions(x)
+        return [_fit_normal(self.interpolations[k] @ positions, self.lines[k].ds)[0] for k in which]
+
+    def line_rows(self, normals: NDArray[np.float64]) -> sp.csr_matrix:
+        """Every line's rows of ``E_l`` with its normal held: ``sqrt(w_l² ds) (n · p - d)`` per sample."""
+        count = len(self.lines)
         blocks = []
-        for index, (line, b, n) in enumerate(zip(lines, interpolations, normals, strict=True)):
-            root = weights.lines * np.sqrt(line.ds)
+        for index, (line, b, n) in enumerate(zip(self.lines, self.interpolations, normals, strict=True)):
+            root = self.weight * np.sqrt(line.ds)
             rows = sp.diags(root) @ sp.hstack([n[0] * b, n[1] * b]).tocsr()
             offset = sp.csr_matrix((-root, (np.arange(len(root)), np.full(len(root), index))), shape=(len(root), count))
             blocks.append(sp.hstack([rows, offset]))
-        return sp.vstack(blocks).tocsr() if blocks else sp.csr_matrix((0, 2 * size + count))
+        return sp.vstack(blocks).tocsr() if blocks else sp.csr_matrix((0, 2 * self.size + count))
 
-    factor: list[Any] = []  # the last factorisation, and the solution it gave
-
-    def solve(a: sp.csr_matrix, reuse: bool = False) -> NDArray[np.float64]:
+    def solve(self, a: sp.csr_matrix, reuse: bool = False) -> NDArray[np.float64]:
+        """The least-squares solution of the rows ``a`` with the known unknowns held, every unknown (``known`` where fixed)."""
+        free, known = self.free, self.known
         active = free & (a.getnnz(axis=0) > 0)  # the offsets of lines not in this solve stay 0
         a_free, a_known = a[:, active], a[:, ~free]
         rhs = a_free.T @ -(a_known @ known[~free])
         lhs = (a_free.T @ a_free).tocsc()
-        x = None
-        if reuse and factor and factor[1].shape == (lhs.shape[0],):  # the normals turned a little: the last factor preconditions conjugate gradients
-            guess = factor[1]
-            x, info = cg(lhs, rhs, x0=guess, rtol=1e-13, atol=0.0, maxiter=60, M=LinearOperator(lhs.shape, factor[0].solve))
-            if info != 0:
-                x = None
+        x = self._preconditioned(lhs, rhs) if reuse else None
         if x is None:
-            try:
-                lu = splu(lhs, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-            except RuntimeError:
-                raise ValueError("the mesh's system is singular: the gauge leaves the map free (fix more vertices)") from None
-            x = lu.solve(rhs)
-            if not (np.all(np.isfinite(x)) and float(np.linalg.norm(lhs @ x - rhs)) <= 1e-6 * max(float(np.linalg.norm(rhs)), 1e-300)):
-                raise ValueError("the mesh's system is singular: the gauge leaves the map free (fix more vertices)")
-            factor[:] = [lu, x]
+            x = self._factored(lhs, rhs)
         if not np.all(np.isfinite(x)):
-            raise ValueError("the mesh's system is singular: the gauge leaves the map free (fix more vertices)")
-        factor[1] = x
+            raise ValueError(_SINGULAR)
+        self.factor[1] = x
         out = known.copy()
         out[active] = x
         return out
 
-    general = [k for k, line in enumerate(lines) if line.orientation == "free"]
-    solves = 0
-    if general:  # the first normals: from the solve without the general lines
-        held = [k for k in range(count) if k not in general]
-        a = sp.vstack([base, line_rows(normals)[_rows_of(lines, held)]]).tocsr() if held else base
-        x = solve(a)
-        solves += 1
-        for k in general:
-            normals[k] = _fit_normal(interpolations[k] @ np.stack([x[:size], x[size : 2 * size]], axis=1), lines[k].ds)[0]
-    x = solve(sp.vstack([base, line_rows(normals)]).tocsr())
-    solves += 1
-    while general and solves < iterations:
-        positions = np.stack([x[:size], x[size : 2 * size]], axis=1)
-        turned = 0.0
-        for k in general:
-            n = _fit_normal(interpolations[k] @ positions, lines[k].ds)[0]
-            n = n if n @ normals[k] >= 0 else -n
-            turned = max(turned, float(np.arccos(np.clip(n @ normals[k], -1.0, 1.0))))
-            normals[k] = n
-        if turned <= ORIENTATION_TOLERANCE:
-            break
-        x = solve(sp.vstack([base, line_rows(normals)]).tocsr(), reuse=True)
-        solves += 1
-    positions = np.stack([x[:size], x[size : 2 * size]], axis=1)
-    energies = {
-        "conformality": weights.conformality**2 * conformality_energy(mesh, positions, salience),
-        "smoothness": weights.smoothness**2 * smoothness_energy(mesh, positions, salience),
-        "lines": weights.lines**2 * sum(line_energy(mesh, positions, line, n) for line, n in zip(lines, normals, strict=True)),
-    }
-    return MeshSolution(mesh, positions, lines, normals, solves, energies)
+    def _preconditioned(self, lhs: sp.csc_matrix, rhs: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """Conjugate gradients preconditioned by the last factor (the normals turned a little), or None if that fails."""
+        if not (self.factor and self.factor[1].shape == (lhs.shape[0],)):
+            return None
+        lu, guess = self.factor
+        x, info = cg(lhs, rhs, x0=guess, rtol=1e-13, atol=0.0, maxiter=60, M=LinearOperator(lhs.shape, lu.solve))
+        return x if info == 0 else None
+
+    def _factored(self, lhs: sp.csc_matrix, rhs: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The normal equations solved by a fresh sparse LU (kept for the next solve)."""
+        try:
+            lu = splu(lhs, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        except RuntimeError:
+            raise ValueError(_SINGULAR) from None
+        x = lu.solve(rhs)
+        if not (np.all(np.isfinite(x)) and float(np.linalg.norm(lhs @ x - rhs)) <= 1e-6 * max(float(np.linalg.norm(rhs)), 1e-300)):
+            raise ValueError(_SINGULAR)
+        self.factor[:] = [lu, x]
+        return x
+
+
+_SINGULAR = "the mesh's system is singular: the gauge leaves the map free (fix more vertices)"
 
 
 def _rows_of(lines: Sequence[Line], which: Sequence[int]) -> NDArray[np.int64]:
@@ -1038,7 +1086,7 @@ def _auto_center(handles: Handles) -> float:
     return float(coords.wrap_lon(seam + 180.0))
 
 
-def content_preserving(
+def content_preserving(  # noqa: PLR0913 - the panorama, its handles and [10]'s documented keyword knobs (the rivals' common call)
     image: NDArray,
     handles: Handles,
     *,
@@ -1113,17 +1161,7 @@ def content_preserving(
     if order not in ORDERS:
         raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
     clock = time.perf_counter()
-    rectified = [h for h in handles.handles if isinstance(h, LineHandle) and h.rectify]
-    if isinstance(orientations, str):
-        if orientations not in ("auto", "free"):
-            raise ValueError(f"orientations must be 'auto', 'free' or one of {_ORIENTATIONS} per line, got {orientations!r}")
-        chosen: list[Orientation] = [_auto_orientation(h) if orientations == "auto" else "free" for h in rectified]
-    else:
-        chosen = list(orientations)
-        if len(chosen) != len(rectified) or any(o not in _ORIENTATIONS for o in chosen):
-            raise ValueError(
-                f"orientations must give one of {', '.join(_ORIENTATIONS)} for each of the {len(rectified)} rectified lines, got {orientations!r}"
-            )
+    chosen = _chosen_orientations([h for h in handles.handles if isinstance(h, LineHandle) and h.rectify], orientations)
     mesh = Mesh(step, _auto_center(handles) if center is None else float(center))
     lines = _line_pieces(handles, mesh, chosen, LINE_SAMPLES_PER_STEP / mesh.step)
     timings = {"mesh": time.perf_counter() - clock}
@@ -1135,6 +1173,22 @@ def content_preserving(
     result = ContentPreservingResult(out, render.mask, solution, render, handles, image.shape[1], timings)
     result.__dict__["_inverse"] = inverse
     return result
+
+
+def _chosen_orientations(
+    rectified: Sequence[LineHandle], orientations: Sequence[Orientation] | Literal["auto", "free"]
+) -> list[Orientation]:
+    """:func:`content_preserving`'s ``orientations``, one per rectified line handle, checked."""
+    if isinstance(orientations, str):
+        if orientations not in ("auto", "free"):
+            raise ValueError(f"orientations must be 'auto', 'free' or one of {_ORIENTATIONS} per line, got {orientations!r}")
+        return [_auto_orientation(h) if orientations == "auto" else "free" for h in rectified]
+    chosen = list(orientations)
+    if len(chosen) != len(rectified) or any(o not in _ORIENTATIONS for o in chosen):
+        raise ValueError(
+            f"orientations must give one of {', '.join(_ORIENTATIONS)} for each of the {len(rectified)} rectified lines, got {orientations!r}"
+        )
+    return chosen
 
 
 def render_image(
