@@ -941,8 +941,48 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
     a = np.array([arc.start for arc in arcs])
     b = np.array([arc.end for arc in arcs])
     normal = _unit(np.cross(a, b))
-    mid = _unit(a + b)
     length = np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.einsum("ij,ij->i", a, b)))
+    order = np.argsort(-length)
+    rank = np.empty(k, dtype=np.intp)
+    rank[order] = np.arange(k)
+    i_of, j_of, share = _band_candidates(a, b, normal, length, distance)
+    # a partner is one the loop still has free when it comes to i: after i in its order (and not paired since)
+    keep = (share >= overlap) & (share > 0.0) & (rank[j_of] > rank[i_of])
+    partner, paired = _greedy_partners(k, rank, i_of[keep], j_of[keep], share[keep])
+    head = np.flatnonzero(partner >= 0)
+    mate = partner[head]
+    start_v, end_v, shade = _midlines(a, b, normal, length, np.array([arc.contrast for arc in arcs]), head, mate)
+    midline = dict(zip(head.tolist(), range(len(head)), strict=True))
+    out: list[Arc] = []
+    for i in order.tolist():
+        if paired[i]:
+            continue
+        n = midline.get(i)
+        if n is None:
+            out.append(arcs[i])
+            continue
+        best = int(mate[n])
+        extent = _degrees_between(start_v[n], end_v[n])
+        coverage = max(arcs[i].coverage * length[i], arcs[best].coverage * length[best]) / max(extent, 1e-9)
+        out.append(Arc(start_v[n], end_v[n], float(shade[n]), min(1.0, coverage), arcs[i].pieces + arcs[best].pieces))
+    return out
+
+
+def _rowwise_dot(u: NDArray, v: NDArray) -> NDArray:
+    """Row-wise dot products of two ``(n, 3)`` arrays."""
+    return np.einsum("ij,ij->i", u, v)
+
+
+def _band_candidates(
+    a: FloatArray, b: FloatArray, normal: FloatArray, length: FloatArray, distance: float
+) -> tuple[NDArray[np.intp], NDArray[np.intp], FloatArray]:
+    """:func:`pair_bands`' pairs ``(i, j)`` that pass its tests but the overlap, and their overlap as a share of the shorter.
+
+    Every pair at once: ``j`` of the other polarity, its points within ``distance`` of
+    ``i``'s circle and ``i``'s ends within ``distance`` of ``j``'s; the share is their
+    overlap along ``i``'s circle.
+    """
+    mid = _unit(a + b)
     sin_d = math.sin(math.radians(distance))
     # the partners each arc may have, by the tests below loosened against rounding: a partner no longer
     # than it overlapping it has an end within half its length and ``distance`` of its middle; and
@@ -951,9 +991,7 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
     span, d_r = np.radians(length), math.radians(distance)
     # and both its ends lie within ``distance`` of the arc's circle, the end in the ball too (the band loosened against rounding)
     i_of, j_of = _EndTree(a, b).pairs((mid, span / 2 + d_r), (-a, span + d_r), circles=normal, band=sin_d * (1 + 1e-9) + 1e-15)
-    dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731 - rowwise dot products
-    # the loop's own tests, every pair at once: j of the other polarity, its points within ``distance`` of i's
-    # circle and i's ends of j's, and their overlap along i's circle as a share of the shorter
+    dot = _rowwise_dot
     n_i, n_j = normal[i_of], normal[j_of]
     ok = dot(n_j, n_i) < 0
     for points, circles in ((a[j_of], n_i), (b[j_of], n_i), (mid[j_of], n_i), (a[i_of], n_j), (b[i_of], n_j)):
@@ -965,13 +1003,16 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
     tb = np.arctan2(dot(b_j, other), dot(b_j, a_i))
     shared = np.minimum(np.maximum(ta, tb), np.radians(length[i_of])) - np.maximum(np.minimum(ta, tb), 0.0)
     share = shared / np.radians(np.minimum(length[i_of], length[j_of]))
-    order = np.argsort(-length)
-    rank = np.empty(k, dtype=np.intp)
-    rank[order] = np.arange(k)
-    # a partner is one the loop still has free when it comes to i: after i in its order (and not paired since)
-    keep = (share >= overlap) & (share > 0.0) & (rank[j_of] > rank[i_of])
-    i_of, j_of, share = i_of[keep], j_of[keep], share[keep]
-    # the greedy choice, longest first: each arc's best free partner (the first of the largest share), in turn
+    return i_of, j_of, share
+
+
+def _greedy_partners(
+    k: int, rank: NDArray[np.intp], i_of: NDArray[np.intp], j_of: NDArray[np.intp], share: FloatArray
+) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+    """The greedy choice, longest first: each arc's best free partner (the first of the largest share), in turn.
+
+    Returns each arc's partner (-1 for none) and whether it was taken as another's partner.
+    """
     partner = np.full(k, -1, dtype=np.intp)
     paired = np.zeros(k, dtype=bool)  # taken as another's partner
     heads = np.unique(i_of)
@@ -988,9 +1029,23 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
         if best >= 0:
             paired[best] = True
             partner[i] = best
-    # the midlines, all at once: _finish of each pair (the same arithmetic, matmul batched as it runs one at a time)
-    head = np.flatnonzero(partner >= 0)
-    mate = partner[head]
+    return partner, paired
+
+
+def _midlines(
+    a: FloatArray,
+    b: FloatArray,
+    normal: FloatArray,
+    length: FloatArray,
+    contrast: FloatArray,
+    head: NDArray[np.intp],
+    mate: NDArray[np.intp],
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Each pair's midline's ends and contrast, all at once.
+
+    :func:`_finish` of each pair ``(head, mate)``: the same arithmetic, matmul batched as it
+    runs one at a time.
+    """
     bisector = _unit(normal[head] - normal[mate])
     origin = _unit(a[head] - np.matmul(a[head][:, None, :], bisector[:, :, None])[:, 0] * bisector)
     other = np.cross(bisector, origin)
@@ -1002,22 +1057,8 @@ def pair_bands(arcs: Sequence[Arc], *, distance: float = BAND_DISTANCE, overlap:
     start_v = np.cos(lo)[:, None] * origin + np.sin(lo)[:, None] * other
     end_v = np.cos(hi)[:, None] * origin + np.sin(hi)[:, None] * other
     weight = np.maximum(np.stack([length[head], length[mate]], axis=1), 1e-12)
-    shade = np.array([arc.contrast for arc in arcs])
-    shade = (np.stack([shade[head], shade[mate]], axis=1) * weight).sum(axis=1) / weight.sum(axis=1)
-    midline = dict(zip(head.tolist(), range(len(head)), strict=True))
-    out: list[Arc] = []
-    for i in order.tolist():
-        if paired[i]:
-            continue
-        n = midline.get(i)
-        if n is None:
-            out.append(arcs[i])
-            continue
-        best = int(mate[n])
-        extent = _degrees_between(start_v[n], end_v[n])
-        coverage = max(arcs[i].coverage * length[i], arcs[best].coverage * length[best]) / max(extent, 1e-9)
-        out.append(Arc(start_v[n], end_v[n], float(shade[n]), min(1.0, coverage), arcs[i].pieces + arcs[best].pieces))
-    return out
+    shade = (np.stack([contrast[head], contrast[mate]], axis=1) * weight).sum(axis=1) / weight.sum(axis=1)
+    return start_v, end_v, shade
 
 
 def _refit(points: NDArray, weights: NDArray, previous: FloatArray) -> FloatArray:
