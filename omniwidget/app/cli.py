@@ -300,10 +300,10 @@ def _headline(result: Result) -> str:
     Only what is cheap or already computed: the lines measured as ``Result.quality`` measures
     them (:func:`omniwidget.evaluate.quality.chain_straightness`: densely, through the map that
     placed the pixels), the fold-over the warp found (``result.folds``) and the conflicts it reported
-    (``result.warnings``, printed above the closing line), which name the handles that gave way.
+    (``result.warnings``, printed above the closing line), with the handles their problems name
+    (``result.problems``).
     """
     import math
-    import re
 
     from ..evaluate.quality import chain_straightness
 
@@ -316,7 +316,7 @@ def _headline(result: Result) -> str:
     area = result.folds.area
     parts.append(f"fold-over {100 * area:.2g}% of the sphere" if area > 0 else "fold-over 0")
     if result.warnings:
-        named = list(dict.fromkeys(m for w in result.warnings for m in re.findall(r"handles\[\d+\]", w)))
+        named = list(dict.fromkeys(f"handles[{h}]" for p in result.problems for h in p.handles))
         count = len(result.warnings)
         parts.append(f"{count} warning{'s' if count > 1 else ''} above" + (f" ({', '.join(named)})" if named else ""))
     else:

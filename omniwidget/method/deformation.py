@@ -11,7 +11,6 @@ which :meth:`Deformation.inverse_points` evaluates at any direction. The per-pix
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields, replace
 from typing import Protocol
@@ -32,6 +31,7 @@ from .harmonic import HarmonicFill, harmonic_fill
 from .limits import check_mesh, check_weights
 from .locate import interpolate, locate_points
 from .mesh import adaptive_mesh
+from .problems import Kind, Problem
 from .reach import reach_discs, reach_samples, solved, with_reach
 
 __all__ = ["Deformation", "blended_points", "crossing_handles", "deform", "levelled_handles", "turned"]
@@ -74,8 +74,9 @@ class Deformation:
         With the still background: the map between the handles, filled in as the most
         conformal map that agrees with the blend around them (:mod:`.harmonic`); None in
         the paper's mode or where the handles and the background hold every node.
-    warnings : tuple of str
-        Conflicts found on the way.
+    problems : tuple of Problem
+        Conflicts found on the way (:mod:`.problems`): their kind, the handles they name
+        and their message.
     timings : dict of str to float
         Seconds per step.
     """
@@ -89,8 +90,13 @@ class Deformation:
     weights: NDArray[np.float64] | None = None
     raw_weights: NDArray[np.float64] | None = field(default=None, repr=False)
     fill: HarmonicFill | None = field(default=None, repr=False)
-    warnings: tuple[str, ...] = ()
+    problems: tuple[Problem, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The problems' messages, in order."""
+        return tuple(p.message for p in self.problems)
 
     @property
     def controls(self) -> tuple[Control, ...]:
@@ -231,7 +237,7 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
     single = maps[0] if maps else Moebius.identity()
     # one map for everything; with a still background only if that map is the identity
     if all(m.isclose(single) for m in maps[1:]) and (handles.options.anchor is None or single.isclose(Moebius.identity())):
-        return Deformation(handles=handles, constraints=constraints, warnings=tuple(problems), timings=timings)
+        return Deformation(handles=handles, constraints=constraints, problems=tuple(problems), timings=timings)
 
     problems += _inside_fixed_cages(handles) + _crossing_lines(constraints)
     extra_samples = reach_samples(handles) if handles.options.anchor is not None else np.empty((0, 3))
@@ -243,7 +249,7 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
     if handles.options.anchor is not None:
         insides = cage_insides(constraints, mesh.vertices)
         constraints, fixed, fixed_values = with_background(constraints, mesh.vertices, handles.options.anchor, insides)
-    b, bc, clashes = _merge_duplicates(sample_index, constraints.values, constraints.controls)
+    b, bc, clashes = _merge_duplicates(sample_index, constraints.values, constraints.controls, handles)
     extra = ~np.isin(fixed, b)
     if extra.any():  # the background's still vertices and the points' disks
         fixed, first = np.unique(fixed[extra], return_index=True)
@@ -269,7 +275,7 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
         prescribed=bc,
         weights=weights,
         raw_weights=raw,
-        warnings=tuple(problems + clashes),
+        problems=tuple(problems + clashes),
         timings=timings,
     )
     if handles.options.anchor is not None:
@@ -367,35 +373,45 @@ def _blend_sum(inverses: Sequence[Moebius], weights: NDArray[np.floating], xyz: 
     return acc / np.linalg.norm(acc, axis=-1, keepdims=True)
 
 
-#: The piece of a line a control is (", part 2 of 3"), left out where handles are named.
-_PART = re.compile(r", part \d+ of \d+")
+def _control_name(control: Control, handles: Handles) -> str:
+    """How a problem names a control: its handle for a line (one name for all its pieces), else its own label."""
+    if control.handle != BACKGROUND and isinstance(handles.handles[control.handle], LineHandle):
+        return f"handles[{control.handle}] (line)"
+    return control.label
 
 
 def _merge_duplicates(
-    b: NDArray[np.int64], values: NDArray[np.float64], controls: tuple[Control, ...]
-) -> tuple[NDArray, NDArray, list[str]]:
+    b: NDArray[np.int64], values: NDArray[np.float64], controls: tuple[Control, ...], handles: Handles
+) -> tuple[NDArray, NDArray, list[Problem]]:
     """One row per constrained vertex; conflicting prescriptions are averaged and reported."""
     order = np.argsort(b, kind="stable")
     b, values = b[order], values[order]
     unique, start = np.unique(b, return_index=True)
     merged = np.add.reduceat(values, start, axis=0) / np.diff(np.append(start, len(b)))[:, None]
-    clashes: dict[tuple[str, ...], list[int]] = {}  # the controls that share points, and the points
+    # the controls that share points (named, with their handles), and the points
+    clashes: dict[tuple[tuple[str, int], ...], list[int]] = {}
     for u, s, e in zip(unique, start, np.append(start[1:], len(b)), strict=True):
         rows = values[s:e]
         if e - s > 1 and np.abs(rows - rows[0]).max() > 1e-9:
-            names = tuple(sorted({_PART.sub("", controls[c].label) for c in np.flatnonzero(np.abs(rows).sum(axis=0) > 0)}))
-            clashes.setdefault(names, []).append(int(u))
-    problems = [
-        f"constraints of {', '.join(names)} fall on the same point"
+            sharing = [controls[c] for c in np.flatnonzero(np.abs(rows).sum(axis=0) > 0)]
+            named = tuple(sorted({(_control_name(c, handles), c.handle) for c in sharing}))
+            clashes.setdefault(named, []).append(int(u))
+    return unique, merged, [_same_point(named, at) for named, at in clashes.items()]
+
+
+def _same_point(named: tuple[tuple[str, int], ...], at: list[int]) -> Problem:
+    """The problem of controls whose constraints fall on the same mesh vertices ``at``, each named with its handle."""
+    message = (
+        f"constraints of {', '.join(name for name, _ in named)} fall on the same point"
         + (f" (mesh vertex {at[0]})" if len(at) == 1 else f"s ({len(at)} mesh vertices, {at[0]} first)")
         + "; their weights were averaged"
-        for names, at in clashes.items()
-    ]
-    return unique, merged, problems
+    )
+    indices = tuple(dict.fromkeys(int(h) for _, h in named if h != BACKGROUND))
+    return Problem(Kind.SAME_POINT, indices, message)
 
 
-def _inside_fixed_cages(handles: Handles) -> list[str]:
-    """Warnings for handles that move something inside a cage that holds its inside still (the paper's Fig. 15)."""
+def _inside_fixed_cages(handles: Handles) -> list[Problem]:
+    """The problems of handles that move something inside a cage that holds its inside still (the paper's Fig. 15)."""
     found = []
     for i, cage in enumerate(handles.handles):
         if not isinstance(cage, CageHandle) or cage.finals != cage.vertices:
@@ -411,15 +427,16 @@ def _inside_fixed_cages(handles: Handles) -> list[str]:
             else:
                 moves, where = other.finals != other.vertices, [*other.vertices, *other.finals]
             if moves and inside_polygon(np.asarray(where, np.float64), cage.vertices).any():
-                found.append(
+                message = (
                     f"handles[{j}] ({other.kind}) moves what handles[{i}] (cage) holds still: the cage's inside cannot stay "
                     "where it is; move the handle out of the cage, or give the cage targets"
                 )
+                found.append(Problem(Kind.CAGE, (j, i), message))
     return found
 
 
-def _pole_lines(handles: Handles, constraints: Constraints) -> list[str]:
-    """One warning per rectified line that passes over or close to a pole (:data:`~omniwidget.method.constraints.POLE_LATITUDE`)."""
+def _pole_lines(handles: Handles, constraints: Constraints) -> list[Problem]:
+    """One problem per rectified line that passes over or close to a pole (:data:`~omniwidget.method.constraints.POLE_LATITUDE`)."""
     background = handles.options.anchor is not None
     found = []
     for i, top in constraints.near_pole:
@@ -429,15 +446,16 @@ def _pole_lines(handles: Handles, constraints: Constraints) -> list[str]:
         moved = float(coords.angular_distance(coords.geodesic_midpoint(line.start, line.end), line.target_points()[1]))
         where = f"handles[{i}] (line) passes {90 - abs(top):.1f}° from the {'north' if top > 0 else 'south'} pole"
         if background:
-            found.append(
+            said = (
                 f"{where}: it is kept as it is (eq. 4 would move its middle {moved:.0f}° and twist the panorama); "
                 "an arc over a pole cannot be straight in the panorama, mark pieces of it that stay lower to straighten them"
             )
         else:
-            found.append(
+            said = (
                 f"{where}: eq. (4) moves its middle {moved:.0f}° and twists the panorama (the paper's method, "
                 '"anchor": null); give it "rectify": false, or use the still background, which keeps it as it is'
             )
+        found.append(Problem(Kind.POLE_LINE, (int(i),), said))
     return found
 
 
@@ -464,9 +482,12 @@ def crossing_handles(constraints: Constraints) -> list[tuple[int, int]]:
     return sorted(found)
 
 
-def _crossing_lines(constraints: Constraints) -> list[str]:
-    """Warnings for lines whose output images cross (:func:`crossing_handles`)."""
-    return [f"handles[{a}] (line) and handles[{b}] (line) cross each other in the output" for a, b in crossing_handles(constraints)]
+def _crossing_lines(constraints: Constraints) -> list[Problem]:
+    """The problems of lines whose output images cross (:func:`crossing_handles`)."""
+    return [
+        Problem(Kind.CROSSING, (int(a), int(b)), f"handles[{a}] (line) and handles[{b}] (line) cross each other in the output")
+        for a, b in crossing_handles(constraints)
+    ]
 
 
 def _previous_weights(previous: Solved | None, vertices: NDArray, faces: NDArray, b: NDArray, bc: NDArray) -> NDArray[np.float64] | None:

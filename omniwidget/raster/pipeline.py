@@ -27,6 +27,7 @@ from ..method.background import BACKGROUND
 from ..method.constraints import POINT_HOLD, SAMPLES, Control
 from ..method.deformation import Deformation, deform
 from ..method.locate import interpolate, locate_grid, locate_points
+from ..method.problems import Kind, Problem
 from ..sphere import coords
 from ..sphere.moebius import Moebius
 from . import _kernels
@@ -99,9 +100,10 @@ class _measured_once:
 class BlendWarning(UserWarning):
     """Handles whose constraints conflict (the paper's Fig. 15); the result is still an image.
 
-    Each warning of :attr:`Result.warnings` is of one of the subclasses below, by where it
-    comes from (:attr:`Result.warning_kinds` has their ``kind``, which the editor groups
-    the warnings by); ``warp(..., warn=True)`` issues it as that class.
+    Each problem of :attr:`Result.problems` (:class:`~omniwidget.method.problems.Problem`)
+    has the ``kind`` of one of the subclasses below (:attr:`Result.warning_kinds` lists
+    them, which the editor groups the warnings by); ``warp(..., warn=True)`` issues its
+    message as that class.
     """
 
     #: What the warnings of this class are about, a short phrase (the editor's group title).
@@ -111,78 +113,43 @@ class BlendWarning(UserWarning):
 class PoleLineWarning(BlendWarning):
     """A rectified line over or close to a pole: kept as it is (the still background), or twisting the panorama."""
 
-    kind = "lines over a pole"
+    kind = Kind.POLE_LINE
 
 
 class CageWarning(BlendWarning):
     """A handle moving what a cage that holds its inside still holds."""
 
-    kind = "handles moving a still cage's inside"
+    kind = Kind.CAGE
 
 
 class CrossingWarning(BlendWarning):
     """Two lines whose output images cross each other."""
 
-    kind = "lines crossing in the output"
+    kind = Kind.CROSSING
 
 
 class SamePointWarning(BlendWarning):
     """Constraints of several handles on one mesh vertex, their weights averaged."""
 
-    kind = "constraints on the same point"
+    kind = Kind.SAME_POINT
 
 
 class GiveWayWarning(BlendWarning):
     """Handles whose maps give way where the blend folded (their lines not straight there)."""
 
-    kind = "handles giving way"
+    kind = Kind.GIVE_WAY
 
 
 class FoldWarning(BlendWarning):
     """Where the blend folded over: untangled, or still shown turned over."""
 
-    kind = "fold-overs"
+    kind = Kind.FOLD
 
 
-def _method_kinds(d: Deformation) -> list[type[BlendWarning]]:
-    """The class of each of the method's warnings (``d.warnings``), by the check that made it.
-
-    :func:`~omniwidget.method.deformation.deform` lists them in this order: a rectified line
-    over a pole per ``constraints.near_pole`` entry, then handles moving a still cage's
-    inside, lines crossing in the output (one per pair of line handles whose output images
-    cross, :func:`~omniwidget.sphere.arcs.crossing_pairs`), and last constraints on the same
-    point. The counts are taken again here from the same data (the warnings' text is not
-    read); should they not add up, the rest are plain :class:`BlendWarning`.
-    """
-    from ..document.handles import CageHandle, LineHandle, PointHandle
-    from ..sphere.arcs import crossing_pairs, inside_polygon
-
-    total, handles = len(d.warnings), d.handles.handles
-    poles = min(len(d.constraints.near_pole), total)
-    if poles == total:
-        return [PoleLineWarning] * total
-    cages = 0
-    for i, cage in enumerate(handles):
-        if isinstance(cage, CageHandle) and cage.finals == cage.vertices:
-            for j, other in enumerate(handles):
-                if j == i:
-                    continue
-                if isinstance(other, PointHandle):
-                    moves = other.final != other.position or other.scale != 1.0 or other.rotation != 0.0
-                    where: list[Any] = [other.position, other.final]
-                elif isinstance(other, LineHandle):
-                    moves, where = True, [other.start, other.end]
-                else:
-                    moves, where = other.finals != other.vertices, [*other.vertices, *other.finals]
-                cages += bool(moves and inside_polygon(np.asarray(where, np.float64), cage.vertices).any())
-    controls, lines = d.constraints.controls, d.constraints.lines
-    curves = [controls[c].moebius(samples) for c, samples in lines]
-    named = {(controls[lines[a][0]].handle, controls[lines[b][0]].handle) for a, b in crossing_pairs(curves)}
-    crossings = sum(1 for a, b in named if a != b)
-    same = total - poles - cages - crossings
-    if same < 0:
-        return [PoleLineWarning] * poles + [BlendWarning] * (total - poles)
-    return [PoleLineWarning] * poles + [CageWarning] * cages + [CrossingWarning] * crossings + [SamePointWarning] * same
+#: The warning class of each kind of problem (:data:`omniwidget.method.problems.KINDS`).
+_CATEGORIES: dict[str, type[BlendWarning]] = {
+    c.kind: c for c in (PoleLineWarning, CageWarning, CrossingWarning, SamePointWarning, GiveWayWarning, FoldWarning)
+}
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -210,14 +177,6 @@ class Result(Deformation):
         The source pixel coordinates the output was resampled by (the blend, evaluated on a
         coarse grid where that is exact enough); None for a single map, which is resampled
         exactly. :meth:`placed_map` turns them into ``[lon, lat]``.
-    warning_kinds : tuple of str
-        One per entry of ``warnings``: the ``kind`` of its :class:`BlendWarning` subclass
-        ("lines crossing in the output", "constraints on the same point", ...), what the
-        editor groups them by.
-    gave_way : tuple of int
-        Indices of the handles that gave way where the blend folded beyond untangling
-        (their maps relaxed, or their lines running through an untangled window): named in
-        ``warnings`` too; their lines are not straight there.
     """
 
     image: NDArray
@@ -225,8 +184,25 @@ class Result(Deformation):
     source_width: int
     folds: FoldOver
     coordinates: NDArray[np.float32] | None = field(default=None, repr=False)
-    warning_kinds: tuple[str, ...] = ()
-    gave_way: tuple[int, ...] = ()
+
+    @property
+    def warning_kinds(self) -> tuple[str, ...]:
+        """One per entry of ``warnings``: its problem's ``kind``, that of its :class:`BlendWarning` subclass.
+
+        ("lines crossing in the output", "constraints on the same point", ...): what the
+        editor groups them by.
+        """
+        return tuple(p.kind for p in self.problems)
+
+    @property
+    def gave_way(self) -> tuple[int, ...]:
+        """Indices of the handles that gave way where the blend folded beyond untangling, ascending.
+
+        Their maps relaxed, or their lines running through an untangled window: the handles
+        of the problems of kind :attr:`~omniwidget.method.problems.Kind.GIVE_WAY`; their
+        lines are not straight there.
+        """
+        return tuple(sorted({h for p in self.problems if p.kind == Kind.GIVE_WAY for h in p.handles}))
 
     def placed_map(self) -> NDArray[np.float64]:
         """The inverse map that placed the output's pixels, ``[lon, lat]`` in degrees, (H, W, 2) float64.
@@ -381,21 +357,23 @@ def blend_coordinates(
 
 def _fold_warning(
     handles: Handles, controls: tuple[Control, ...], pixel_weights: NDArray, area: float, patches: Sequence[Patch] = (), width: int = 0
-) -> str:
-    """Name the handles whose weights are strong where the blend folded, (pixels, k) weights, and what became of it."""
+) -> Problem:
+    """The fold-over's problem: the handles whose weights are strong where the blend folded, (pixels, k) weights, and what became of it."""
     strong = np.flatnonzero(pixel_weights.max(axis=0) >= 0.1)
     involved = sorted({controls[j].handle for j in strong} - {BACKGROUND})
     names = " and ".join(f"handles[{i}] ({handles.handles[i].kind})" for i in involved) or "the still background"
     if patches and area == 0:
         moved = max(p.moved for p in patches)
-        return (
+        said = (
             f"the blend folded over near {names}; untangled in {len(patches)} window{'s' * (len(patches) > 1)}, where "
             f"their maps give way by up to {moved * width / 360:.2g} px ({moved:.2g}°): the warp is one-to-one"
         )
-    return (
-        f"the warp folds over near {names}: {100 * area:.3g}% of the sphere is shown turned over "
-        "(Result.folds.mask shows where); their targets conflict, move them apart"
-    )
+    else:
+        said = (
+            f"the warp folds over near {names}: {100 * area:.3g}% of the sphere is shown turned over "
+            "(Result.folds.mask shows where); their targets conflict, move them apart"
+        )
+    return Problem(Kind.FOLD, tuple(int(i) for i in involved), said)
 
 
 def _line_pixels(d: Deformation, width: int) -> list[tuple[int, NDArray[np.int64]]]:
@@ -408,12 +386,16 @@ def _line_pixels(d: Deformation, width: int) -> list[tuple[int, NDArray[np.int64
     return out
 
 
-def _lines_given_way(handles: Handles, lines: list[tuple[int, NDArray[np.int64]]], patches: Sequence[Patch]) -> tuple[list[int], list[str]]:
-    """The lines that run through a window untangled without keeping it (:attr:`Patch.keeps_lines`), and a warning per line."""
+def _lines_given_way(handles: Handles, lines: list[tuple[int, NDArray[np.int64]]], patches: Sequence[Patch]) -> list[Problem]:
+    """A problem per line that runs through a window untangled without keeping it (:attr:`Patch.keeps_lines`)."""
     given = sorted({h for p in patches if not p.keeps_lines for h, px in lines if p.covers(px).any()})
-    return given, [
-        f"handles[{h}] ({handles.handles[h].kind}) gives way where the blend folded on it: it is not straight there "
-        "(Result.quality.relaxed says how far)"
+    return [
+        Problem(
+            Kind.GIVE_WAY,
+            (int(h),),
+            f"handles[{h}] ({handles.handles[h].kind}) gives way where the blend folded on it: it is not straight there "
+            "(Result.quality.relaxed says how far)",
+        )
         for h in given
     ]
 
@@ -450,7 +432,7 @@ def _held_pixels(d: Deformation, width: int) -> NDArray[np.bool_]:
 
 def _give_way(
     d: Deformation, folds: FoldOver, width: int, src_width: int, exact: bool
-) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch], list[str], list[int]]:
+) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch], Problem]:
     """The deformation with the maps of the handles where it still folds relaxed toward the background's, as little as clears it.
 
     The controls whose weight is at least 0.1 at a turned-over pixel are relaxed together:
@@ -459,8 +441,8 @@ def _give_way(
     the first ``t`` of :data:`GIVE_WAY` whose blend, untangled, turns nothing over is kept; at
     ``t = 0`` those maps are the still background's and the blend is the background's there; if
     it still folds then, every handle gives way (the identity folds nothing).
-    Returns the deformation, the coordinates, their fold check, the untangled windows, the
-    warning that says who gave way and how far, and their handles' indices.
+    Returns the deformation, the coordinates, their fold check, the untangled windows and the
+    problem that says who gave way and how far.
     """
     if d.vertices is None or d.faces is None or d.weights is None:
         raise ValueError("the deformation has no weights: one Möbius map does it all (warp_moebius)")
@@ -485,11 +467,12 @@ def _give_way(
     else:  # still folding with those maps the identity: every handle gives way (the identity everywhere folds nothing)
         involved = {j for j, c in enumerate(d.controls) if c.handle != BACKGROUND}
         relaxed, coordinates, left, patches = attempt(0.0)
-    names = " and ".join(f"handles[{h}] ({d.handles.handles[h].kind})" for h in sorted({d.controls[j].handle for j in involved}))
+    given = sorted({int(d.controls[j].handle) for j in involved})
+    names = " and ".join(f"handles[{h}] ({d.handles.handles[h].kind})" for h in given)
     said = f"{names} give way where their blend folded beyond untangling: their maps are taken {100 * t:.0f}% of the way"
     if left.area > 0:
         said += f", and {100 * left.area:.3g}% of the sphere is still shown turned over"
-    return relaxed, coordinates, left, patches, [said], sorted({d.controls[j].handle for j in involved})
+    return relaxed, coordinates, left, patches, Problem(Kind.GIVE_WAY, tuple(given), said)
 
 
 def _patch_count(mask: NDArray[np.bool_]) -> int:
@@ -575,9 +558,7 @@ def warp(
         raise TypeError(f"previous must be a Result of an earlier warp, got {type(previous).__name__}")
     width = check_warp_arguments(image, width, order)
     d = deform(handles, samples=samples, previous=previous)
-    timings, problems = dict(d.timings), list(d.warnings)
-    classes = _method_kinds(d)
-    gave_way: set[int] = set()  # handles whose maps or lines gave way where the blend folded
+    timings, problems = dict(d.timings), list(d.problems)
     if d.weights is None or d.vertices is None or d.faces is None:
         laps = Laps(timings)
         single = d.moebius or Moebius.identity()
@@ -593,30 +574,22 @@ def warp(
             lines, keep = _kept(d, width)
             untangled, left, patches = _untangled(coordinates, folds, image.shape[1], keep)
             if left.area > 0 and GIVE_WAY:  # folds no window clears: the handles there give way as little as clears them
-                d, untangled, left, patches, given, relaxed = _give_way(d, left, width, image.shape[1], exact)
-                problems += given
-                classes += [GiveWayWarning] * len(given)
-                gave_way.update(relaxed)
+                d, untangled, left, patches, given = _give_way(d, left, width, image.shape[1], exact)
+                problems.append(given)
                 lines = _line_pixels(d, width)
             coordinates, folds = untangled, left
-            through, given_lines = _lines_given_way(handles, lines, patches)
-            gave_way.update(through)
-            problems += given_lines
-            classes += [GiveWayWarning] * len(given_lines)
+            problems += _lines_given_way(handles, lines, patches)
             laps("untangle")
         inverse = patched_inverse(filled_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], *mesh, width), d.fill), patches)
         out = remap_panorama(image, coordinates, order)
         laps("resampling")
         if at_folds is not None and (patches or folds.area >= FOLD_WARNING_AREA):
             problems.append(_fold_warning(handles, d.controls, at_folds, folds.area, patches, width))
-            classes.append(FoldWarning)
-    for p, category in zip(problems, classes, strict=True) if warn else ():
-        warnings.warn(p, category, stacklevel=2)
+    for p in problems if warn else ():
+        warnings.warn(p.message, _CATEGORIES[p.kind], stacklevel=2)
     kept = {f.name: getattr(d, f.name) for f in fields(Deformation)}
     return Result(
-        **{**kept, "warnings": tuple(problems), "timings": timings},
-        warning_kinds=tuple(c.kind for c in classes),
-        gave_way=tuple(sorted(gave_way)),
+        **{**kept, "problems": tuple(problems), "timings": timings},
         image=out,
         inverse=inverse,
         source_width=image.shape[1],
