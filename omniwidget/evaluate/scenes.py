@@ -425,7 +425,7 @@ def _pick_lines(
     return picked
 
 
-#: The rooms of issue 9's figures (``lined_room``): seed and number of lines.
+#: The rooms of the straightness figures (``lined_room``): seed and number of lines.
 LINED_ROOMS = ((1, 6), (2, 8), (3, 10), (4, 8), (5, 7))
 
 
@@ -550,7 +550,7 @@ SUGGESTED_SHARE = 0.8
 #: Samples along a suggestion for matching it to a scene line.
 _SUGGESTED_SAMPLES = 41
 #: The detector's suggestions per room and ``max_lines``, kept for the next call with that room
-#: (it is deterministic, and it takes ~1.7 s at 2048 where the rest takes milliseconds).
+#: (it is deterministic, and it is by far the slowest step of making a scene).
 _SUGGESTIONS: dict[tuple[Any, ...], tuple[Any, ...]] = {}
 _SUGGESTIONS_KEPT = 64
 
@@ -624,8 +624,8 @@ def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Hand
         along the horizon, say) stay among the handles, as a person accepting every
         suggestion keeps them, and are listed in ``"unmatched_handles"``. Suggestions
         may climb past ±75° of latitude (a ceiling line over the camera), as on photos.
-        The detector takes ~1.7 s; its suggestions are kept for the next call with the
-        same room (it is deterministic).
+        The detector is the slow step; its suggestions are kept for the next call with
+        the same room (it is deterministic).
 
     Cages keep their vertices in order around the polygon, are at most 90° across (far
     smaller than a hemisphere) and hold no point and no line.
@@ -874,7 +874,7 @@ def _suggested_scene(rng: np.random.Generator, seed: int, width: int) -> tuple[S
     suggestions = _SUGGESTIONS.get(key)
     if suggestions is None:
         image = scene.image if width == SUGGESTED_WIDTH else synthetic_room(SUGGESTED_WIDTH, **room).image
-        # the detector's ranked lines as they were before the structure was chosen (issue 36): the family's figures stand
+        # the detector's ranked lines, without the structure's choice (structure=False): the family's figures are of those
         suggestions = tuple(suggest_lines(image, max_lines=max_lines, structure=False))
         if len(_SUGGESTIONS) >= _SUGGESTIONS_KEPT:
             del _SUGGESTIONS[next(iter(_SUGGESTIONS))]
@@ -1152,7 +1152,7 @@ def _random_points(
     return out
 
 
-def synthetic_room(
+def synthetic_room(  # noqa: PLR0913 - the room's documented keyword knobs (tests and benches call it by them)
     width: int = 2048,
     *,
     size: Sequence[float] = (8.0, 6.0, 3.0),
@@ -1228,19 +1228,10 @@ def synthetic_room(
     width = whole_number(width, "width", 8)
     if width % 2:
         raise ValueError(f"width must be even (the height is width / 2), got {width}")
-    size_ = _vector3("size", size)
-    if np.any(size_ <= 0):
-        raise ValueError(f"size must be three positive lengths in metres, got {tuple(size)}")
-    camera_ = _vector3("camera", camera)
+    size_, camera_ = _checked_box(size, camera)
     half = size_ / 2
-    if np.any(np.abs(camera_) >= half):
-        inside = ", ".join(f"|{axis}| < {h:g}" for axis, h in zip("xyz", half, strict=True))
-        raise ValueError(f"camera {tuple(camera)} is not strictly inside the room: it needs {inside} metres")
     yaw = _finite("yaw", yaw)
-    pitch = _finite("pitch", pitch)
-    roll = _finite("roll", roll)
-    if abs(pitch) > 90 or abs(roll) > 90:
-        raise ValueError(f"pitch and roll must be within ±90 degrees, got pitch={pitch}, roll={roll}")
+    pitch, roll = _checked_tilt(pitch, roll)
     line_width = _positive("line_width", line_width)
     edge_width = 3 * line_width if edge_width is None else _positive("edge_width", edge_width)
     if grid is not None:
@@ -1248,15 +1239,11 @@ def synthetic_room(
         if grid <= line_width:
             raise ValueError(f"grid ({grid} m) must be larger than line_width ({line_width} m)")
     supersample = whole_number(supersample, "supersample", 1)
-    noise = _finite("noise", noise)
-    if noise < 0:
-        raise ValueError(f"noise must be >= 0, got {noise}")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
-        raise ValueError(f"seed must be an integer or None, got {seed!r}")
+    noise = _checked_noise(noise, seed)
 
-    grid_lines = [_grid_positions(h, grid) for h in half]
     tilt = None if pitch == 0.0 and roll == 0.0 else _tilt_matrix(pitch, roll)
-    image = _render(width, supersample, camera_, half, yaw, grid, grid_lines, line_width, edge_width, tilt)
+    room = _Room(camera_, half, yaw, tilt, _Paint(grid, [_grid_positions(h, grid) for h in half], line_width, edge_width))
+    image = _render(width, supersample, room)
     if noise > 0:
         rng = np.random.default_rng(seed)
         noisy = image + rng.normal(0.0, noise, image.shape)
@@ -1265,7 +1252,7 @@ def synthetic_room(
     to_camera = _yaw_matrix(yaw) if tilt is None else tilt @ _yaw_matrix(yaw)
     lines = [
         _scene_line(to_camera @ (p - camera_), to_camera @ (q - camera_), kind, faces)
-        for p, q, kind, faces in _room_segments(half, grid_lines)
+        for p, q, kind, faces in _room_segments(half, room.paint.lines)
     ]
     return Scene(
         image=image,
@@ -1281,7 +1268,39 @@ def synthetic_room(
     )
 
 
-# --- box rooms: the structure against its texture (issue 36) ---------------------------
+def _checked_box(size: Sequence[float], camera: Sequence[float]) -> tuple[FloatArray, FloatArray]:
+    """:func:`synthetic_room`'s ``size`` and ``camera`` as arrays, the camera strictly inside the box."""
+    size_ = _vector3("size", size)
+    if np.any(size_ <= 0):
+        raise ValueError(f"size must be three positive lengths in metres, got {tuple(size)}")
+    camera_ = _vector3("camera", camera)
+    half = size_ / 2
+    if np.any(np.abs(camera_) >= half):
+        inside = ", ".join(f"|{axis}| < {h:g}" for axis, h in zip("xyz", half, strict=True))
+        raise ValueError(f"camera {tuple(camera)} is not strictly inside the room: it needs {inside} metres")
+    return size_, camera_
+
+
+def _checked_tilt(pitch: float, roll: float) -> tuple[float, float]:
+    """:func:`synthetic_room`'s camera tilt, each angle finite and within ±90 degrees."""
+    pitch = _finite("pitch", pitch)
+    roll = _finite("roll", roll)
+    if abs(pitch) > 90 or abs(roll) > 90:
+        raise ValueError(f"pitch and roll must be within ±90 degrees, got pitch={pitch}, roll={roll}")
+    return pitch, roll
+
+
+def _checked_noise(noise: float, seed: int | None) -> float:
+    """:func:`synthetic_room`'s noise level, ``>= 0``, after checking that its ``seed`` is an integer or None."""
+    noise = _finite("noise", noise)
+    if noise < 0:
+        raise ValueError(f"noise must be >= 0, got {noise}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
+        raise ValueError(f"seed must be an integer or None, got {seed!r}")
+    return noise
+
+
+# --- box rooms: the structure against its texture -----------------------------------
 
 #: Degrees: a point of a box edge is covered, and a point of a kept line is on the structure, within this.
 BOX_ROOM_TOLERANCE = 0.5
@@ -1553,42 +1572,44 @@ def _cast_rays(directions: FloatArray, camera: FloatArray, half: FloatArray) -> 
     return face, hit
 
 
-def _ink(
-    face: NDArray[np.uint8],
-    hit: list[FloatArray],
-    half: FloatArray,
-    grid: float | None,
-    grid_lines: list[FloatArray],
-    line_width: float,
-    edge_width: float,
-) -> NDArray[np.bool_]:
+@dataclass(frozen=True, eq=False)
+class _Paint:
+    """The ink on the walls: grid lines every ``grid`` metres (None: none) at ``lines`` per axis, and the edges' bands."""
+
+    grid: float | None
+    lines: list[FloatArray]
+    line_width: float
+    edge_width: float
+
+
+@dataclass(frozen=True, eq=False)
+class _Room:
+    """A box room as the ray caster sees it: the camera in it, the box's half size, its turn and tilt, and its paint."""
+
+    camera: FloatArray
+    half: FloatArray
+    yaw: float
+    tilt: FloatArray | None
+    paint: _Paint
+
+
+def _ink(face: NDArray[np.uint8], hit: list[FloatArray], half: FloatArray, paint: _Paint) -> NDArray[np.bool_]:
     """Whether each hit point lies on a painted grid line or edge band."""
     normal_axis = face // 2
     ink = np.zeros(face.shape, dtype=bool)
     for axis, x in enumerate(hit):
-        on_line = half[axis] - np.abs(x) < edge_width / 2
-        positions = grid_lines[axis]
+        on_line = half[axis] - np.abs(x) < paint.edge_width / 2
+        positions = paint.lines[axis]
         if positions.size:
             # The grid line nearest to x, by its index in `positions`.
-            k = np.clip(np.rint((x - positions[0]) / grid), 0, positions.size - 1).astype(np.intp)
-            on_line |= np.abs(x - positions[k]) < line_width / 2
+            k = np.clip(np.rint((x - positions[0]) / paint.grid), 0, positions.size - 1).astype(np.intp)
+            on_line |= np.abs(x - positions[k]) < paint.line_width / 2
         # The coordinate along a face's normal is constant on it and draws nothing.
         ink |= on_line & (normal_axis != axis)
     return ink
 
 
-def _render(
-    width: int,
-    supersample: int,
-    camera: FloatArray,
-    half: FloatArray,
-    yaw: float,
-    grid: float | None,
-    grid_lines: list[FloatArray],
-    line_width: float,
-    edge_width: float,
-    tilt: FloatArray | None = None,
-) -> NDArray[np.uint8]:
+def _render(width: int, supersample: int, room: _Room) -> NDArray[np.uint8]:
     """Ray-cast the room into a ``(width // 2, width, 3)`` uint8 image.
 
     The rays are the pixel centres of an image ``supersample`` times larger, so each
@@ -1597,7 +1618,7 @@ def _render(
     n = supersample
     height = width // 2
     lon, lat = coords.grid_lonlat(width * n)
-    room_lon = lon - yaw  # turning the room by +yaw turns the rays by -yaw
+    room_lon = lon - room.yaw  # turning the room by +yaw turns the rays by -yaw
     # One colour lookup table per channel, wide enough to sum n * n samples.
     channels = [_PALETTE[:, c].astype(np.uint32) for c in range(3)]
     image = np.empty((height, width, 3), dtype=np.uint8)
@@ -1605,14 +1626,14 @@ def _render(
     for row in range(0, height, rows_per_block):
         rows = min(rows_per_block, height - row)
         lat_block = lat[row * n : (row + rows) * n]
-        if tilt is None:
+        if room.tilt is None:
             lonlat = np.stack(np.broadcast_arrays(room_lon[None, :], lat_block[:, None]), axis=-1)
             directions = coords.lonlat_to_xyz(lonlat)
         else:  # a tilted ray d is the room direction (T Y)^T d; as rows, d @ (T Y)
             lonlat = np.stack(np.broadcast_arrays(lon[None, :], lat_block[:, None]), axis=-1)
-            directions = coords.lonlat_to_xyz(lonlat) @ (tilt @ _yaw_matrix(yaw))
-        face, hit = _cast_rays(directions, camera, half)
-        ink = _ink(face, hit, half, grid, grid_lines, line_width, edge_width)
+            directions = coords.lonlat_to_xyz(lonlat) @ (room.tilt @ _yaw_matrix(room.yaw))
+        face, hit = _cast_rays(directions, room.camera, room.half)
+        ink = _ink(face, hit, room.half, room.paint)
         colour_index = np.where(ink, np.uint8(_INK), face)  # (rows * n, width * n)
         for c, table in enumerate(channels):
             # Sum each pixel's n x n samples: first down the rows, then along the columns.
