@@ -110,15 +110,15 @@ def test_notebook_04_table_bbw_is_smooth_piecewise_tears_gaussian_bends(executed
     assert close["piecewise_constant"]["tear"] > 10, close["piecewise_constant"]
 
 
-#: The README's table of notebook 04's comparison (its room at 512 wide), as printed there: method -> (worst line
-#: from straight, px; fold-over, %; tear, px; conformal distortion mean); and the close pair's line figures.
-README_TABLE = {
+#: The table of notebook 04's comparison (its room at 512 wide) in bench/RESULTS.md, as printed there: method ->
+#: (worst line from straight, px; fold-over, %; tear, px; conformal distortion mean); and the close pair's line figures.
+RESULTS_TABLE = {
     "bbw": ("BBW (the paper)", "0.08", "0", "0.31", "0.36"),
     "piecewise_constant": ("piecewise-constant", "0.08", "1.16", "80", "1.71"),
     "gaussian_2017": ("Gaussian 2017", "0.96", "0", "0.10", "0.04"),
     "single_moebius": ("one Möbius map", "3.56", "0", "0.02", "0"),
 }
-README_CLOSE = {"gaussian_2017": "0.32", "bbw": "0.04"}
+RESULTS_CLOSE = {"gaussian_2017": "0.32", "bbw": "0.04"}
 
 
 def _rounds_to(value: float, printed: str) -> bool:
@@ -127,23 +127,23 @@ def _rounds_to(value: float, printed: str) -> bool:
     return abs(value - float(printed)) <= 0.5 * 10.0**-decimals + 1e-12
 
 
-def test_notebook_04_table_has_the_readmes_figures(executed):
-    """Every figure of the README's table is the one notebook 04 measures, to the digits printed (measured: BBW 0.080 px,
-    0, 0.314 px, 0.361; piecewise 0.076 px, 1.160%, 80.3 px, 1.709; Gaussian 0.959 px, 0, 0.095 px, 0.038; one map
+def test_notebook_04_table_has_the_results_figures(executed):
+    """Every figure of the comparison table in bench/RESULTS.md is the one notebook 04 measures, to the digits printed
+    (measured: BBW 0.080 px, 0, 0.314 px, 0.361; piecewise 0.076 px, 1.160%, 80.3 px, 1.709; Gaussian 0.959 px, 0, 0.095 px, 0.038; one map
     3.565 px, 0, 0.020 px, 9e-6; the close pair 0.323 and 0.043 px)."""
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    results = (Path(__file__).resolve().parents[1] / "bench" / "RESULTS.md").read_text(encoding="utf-8")
     nb = executed(next(p for p in NOTEBOOKS if p.name.startswith("04_")))
     room, close = _table(nb, "comparison-room"), _table(nb, "comparison-close")
-    for method, (name, line, fold, tear, distortion) in README_TABLE.items():
-        assert f"| {name} | {line} px | {fold}% | {tear} px | {distortion} |" in readme, name
+    for method, (name, line, fold, tear, distortion) in RESULTS_TABLE.items():
+        assert f"| {name} | {line} px | {fold}% | {tear} px | {distortion} |" in results, name
         got = room[method]
         figures = {"straightness": (got["straightness"], line), "fold_over": (100 * got["fold_over"], fold)}
         figures |= {"tear": (got["tear"], tear), "distortion_mean": (got["distortion_mean"], distortion)}
         for what, (value, printed) in figures.items():
             assert _rounds_to(value, printed), (method, what, value, printed)
     pair = (close["gaussian_2017"]["straightness"], close["bbw"]["straightness"])
-    assert f"leaves them {README_CLOSE['gaussian_2017']} px from straight, against {README_CLOSE['bbw']} px for BBW" in readme
-    assert _rounds_to(pair[0], README_CLOSE["gaussian_2017"]) and _rounds_to(pair[1], README_CLOSE["bbw"]), pair
+    assert f"leaves them {RESULTS_CLOSE['gaussian_2017']} px from straight, against {RESULTS_CLOSE['bbw']} px for BBW" in results
+    assert _rounds_to(pair[0], RESULTS_CLOSE["gaussian_2017"]) and _rounds_to(pair[1], RESULTS_CLOSE["bbw"]), pair
 
 
 def _still_background_lines(nb) -> tuple[str, str]:
