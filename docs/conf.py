@@ -107,7 +107,27 @@ html_theme_options = {
 }
 # pages with no pages under them need no section navigation
 html_sidebars = {
-    page: [] for page in ("index", "gallery/index", "cli", "handles-file", "conventions", "architecture", "paper-figures", "about")
+    page: []
+    for page in (
+        "index",
+        "install",
+        "editor",
+        "cli",
+        "library",
+        "detection",
+        "video",
+        "large",
+        "gallery/index",
+        "handles-file",
+        "conventions",
+        "architecture",
+        "default-mode",
+        "inside",
+        "reliability",
+        "packages",
+        "paper-figures",
+        "about",
+    )
 }
 html_show_sourcelink = False
 html_copy_source = False

@@ -308,6 +308,16 @@ def test_every_page_of_the_site_is_there(site):
         "notebooks",
         "gallery/index",
         "api/index",
+        "install",
+        "editor",
+        "library",
+        "detection",
+        "video",
+        "large",
+        "default-mode",
+        "inside",
+        "reliability",
+        "packages",
     ):
         assert (site / f"{page}.html").is_file(), page
 
