@@ -107,7 +107,7 @@ def _scale(shift: NDArray[np.float32], step: int) -> NDArray[np.float32]:
     return np.minimum(det / np.maximum(longer, 1e-12), 1.0)
 
 
-def sampled_coordinates(
+def sampled_coordinates(  # noqa: PLR0913 - the blend's arrays as the kernels take them, and the two documented keyword knobs
     inverses: Sequence[Moebius],
     vertices: NDArray[np.float64],
     faces: NDArray[np.int64],
@@ -159,25 +159,8 @@ def sampled_coordinates(
     coarse_width = width // step
     neighbours = face_neighbours(faces)  # the samples' walk and the exact blocks' walks share them
     samples, face, planes = _kernels.walk_blend(vertices, faces, weights, inverses, coarse_width, src_width, neighbours=neighbours)
-    per_degree = src_width / 360.0
-    lon_c, lat_c = coords.grid_lonlat(coarse_width)
-    shift = np.empty_like(samples)  # displacement from where each sample is shown, source pixels
-    shift[..., 0] = samples[..., 0] - ((lon_c + 180.0) * per_degree - 0.5 + PAD)[None, :]
-    shift[..., 0] = (shift[..., 0] + src_width / 2) % src_width - src_width / 2
-    shift[..., 1] = samples[..., 1] - ((90.0 - lat_c) * per_degree - 0.5 + PAD)[:, None]
-
-    src_lat = 90.0 - (samples[..., 1] - PAD + 0.5) / per_degree
-    bad = np.abs(src_lat) > 90.0 - _POLE_SAMPLES * 360.0 / coarse_width
-    jump = np.abs(np.diff(shift[..., 0], axis=0)) > _JUMP * per_degree
-    bad[1:] |= jump
-    bad[:-1] |= jump
-    jump = np.abs(np.roll(shift[..., 0], -1, axis=1) - shift[..., 0]) > _JUMP * per_degree
-    bad |= jump | np.roll(jump, 1, axis=1)
-    limit = 4 * tolerance * _scale(shift, step)
-    down = np.abs(shift[2:] - 2 * shift[1:-1] + shift[:-2]) > limit[1:-1, :, None]
-    bad[1:-1] |= down[..., 0] | down[..., 1]
-    across = np.abs(np.roll(shift, -1, axis=1) - 2 * shift + np.roll(shift, 1, axis=1)) > limit[..., None]
-    bad |= across[..., 0] | across[..., 1]
+    shift = _shift(samples, src_width)
+    bad = _unreliable(samples, shift, src_width, step, tolerance)
     handles = np.zeros_like(bad)
     col, row = np.floor(coords.lonlat_to_px(coords.xyz_to_lonlat(near), coarse_width) + 0.5).astype(np.int64).T
     handles[np.clip(row, 0, coarse_width // 2 - 1), col % coarse_width] = True
@@ -194,3 +177,34 @@ def sampled_coordinates(
         src = blended_points(inverses, vertices, faces, weights, coords.lonlat_to_xyz(np.stack([lon[m_cols], lat[m_rows]], axis=-1)))
         out[m_rows, m_cols] = coords.lonlat_to_px(src, src_width) + PAD
     return out, face, planes
+
+
+def _shift(samples: NDArray[np.float32], src_width: int) -> NDArray[np.float32]:
+    """Each sample's displacement from where it is shown, source pixels ``(dx, dy)``, ``dx`` wrapped to the nearest turn."""
+    coarse_width = samples.shape[1]
+    per_degree = src_width / 360.0
+    lon_c, lat_c = coords.grid_lonlat(coarse_width)
+    shift = np.empty_like(samples)
+    shift[..., 0] = samples[..., 0] - ((lon_c + 180.0) * per_degree - 0.5 + PAD)[None, :]
+    shift[..., 0] = (shift[..., 0] + src_width / 2) % src_width - src_width / 2
+    shift[..., 1] = samples[..., 1] - ((90.0 - lat_c) * per_degree - 0.5 + PAD)[:, None]
+    return shift
+
+
+def _unreliable(samples: NDArray[np.float32], shift: NDArray[np.float32], src_width: int, step: int, tolerance: float) -> NDArray[np.bool_]:
+    """Samples not to interpolate from: near a source pole, beside a jump of the displacement, or curved beyond ``tolerance``."""
+    coarse_width = samples.shape[1]
+    per_degree = src_width / 360.0
+    src_lat = 90.0 - (samples[..., 1] - PAD + 0.5) / per_degree
+    bad = np.abs(src_lat) > 90.0 - _POLE_SAMPLES * 360.0 / coarse_width
+    jump = np.abs(np.diff(shift[..., 0], axis=0)) > _JUMP * per_degree
+    bad[1:] |= jump
+    bad[:-1] |= jump
+    jump = np.abs(np.roll(shift[..., 0], -1, axis=1) - shift[..., 0]) > _JUMP * per_degree
+    bad |= jump | np.roll(jump, 1, axis=1)
+    limit = 4 * tolerance * _scale(shift, step)
+    down = np.abs(shift[2:] - 2 * shift[1:-1] + shift[:-2]) > limit[1:-1, :, None]
+    bad[1:-1] |= down[..., 0] | down[..., 1]
+    across = np.abs(np.roll(shift, -1, axis=1) - 2 * shift + np.roll(shift, 1, axis=1)) > limit[..., None]
+    bad |= across[..., 0] | across[..., 1]
+    return bad
