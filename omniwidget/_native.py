@@ -1,8 +1,7 @@
 """The compiled kernels in a fresh process without numba: their machine code kept on disk, loaded by llvmlite.
 
-Issue 18, part 1. Reading a kernel from numba's own cache still costs a new process about
-half a second before the kernel runs: importing numba, then building its typing and target
-contexts at the first call (hundreds of modules: numba's whole library of numpy and
+Reading a kernel from numba's own cache still costs a new process a long wait before the
+kernel runs: importing numba, then building its typing and target contexts at the first call (hundreds of modules: numba's whole library of numpy and
 Python implementations, cffi, a BLAS check that imports scipy.linalg). That is more than
 the kernels' whole work on a 2048-wide panorama, and more than the rest of a warp's start.
 
@@ -11,7 +10,7 @@ argument types a warp gives it, that kernel is compiled once more as a plain C f
 numba ``cfunc`` that makes arrays of its pointer arguments and calls the kernel, which
 numba links in whole) and its machine code is written next to numba's cache: per
 installation and argument types, like numba's cache, never per input. Later processes load
-it with llvmlite alone (its import and a JIT engine: tens of milliseconds), call it through
+it with llvmlite alone (its import and a JIT engine), call it through
 ctypes, which releases the GIL as the kernels' ``nogil`` does, and never import numba.
 The instructions are those numba generates for the kernel on C-contiguous arrays, so the
 results are bit for bit those of numba's own dispatch.
@@ -19,8 +18,8 @@ results are bit for bit those of numba's own dispatch.
 A stored kernel is used only when its file says it was built from the same
 ``_numba_kernels.py`` (its bytes), numba, llvmlite, Python, file format and CPU (name and
 features); otherwise numba runs it and the file is rebuilt in place (one file per kernel,
-argument types and CPU: the folder does not grow). Numba runs a kernel itself, as before,
-when no stored copy fits, when an array is not C-contiguous, aligned and writeable, once
+argument types and CPU: the folder does not grow). Numba runs a kernel itself when no
+stored copy fits, when an array is not C-contiguous, aligned and writeable, once
 :mod:`omniwidget._numba_kernels` is imported in the process (numba is paid for
 then, and its cache statistics stay whole), or with ``OMNIWIDGET_NATIVE=0``.
 
@@ -28,7 +27,7 @@ The files live where numba keeps its cache for ``_numba_kernels.py``: in
 ``NUMBA_CACHE_DIR`` when set, else in the package's ``__pycache__`` folder when it can be
 written; else, or when that folder is not ours (below), in the user's cache folder.
 
-Machine code is run only when it is ours (issue 35, part 5), as ssh trusts its files: the
+Machine code is run only when it is ours, as ssh trusts its files: the
 file is a regular file (not a symbolic link) owned by the user or root and not writable by
 group or others, and so is its folder and every folder above it up to ``/`` (a folder above
 may be writable by others when it is sticky, as ``/tmp`` is; a group of the user alone, a

@@ -29,7 +29,7 @@ texture:
   box's corner joins three edges, do not cross).
 
 Every drop says why, in words (:class:`StructureChoice`). ``bench/RESULTS.md`` ("Structure
-first (issue 36)") gives the figures on generated box rooms and on the photographs.
+first") gives the figures on generated box rooms and on the photographs.
 """
 
 from __future__ import annotations

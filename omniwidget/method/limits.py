@@ -1,8 +1,8 @@
 """The method's caps: samples, mesh vertices and weights, so that no handles document exhausts the machine.
 
 The bounded biharmonic weights cost memory and time in proportion to their count, mesh
-vertices times controls: about 50 bytes and 2 to 7 µs each (bench/bench_limits.py,
-bench/RESULTS.md "Limits (issue 35)"). Each cap refuses, before the work, with a
+vertices times controls: about 50 bytes each, and a time of their own (``bench/bench_limits.py``
+measures both; ``bench/RESULTS.md``, "Limits"). Each cap refuses, before the work, with a
 :class:`~omniwidget.errors.HandlesError` that names the cap, what reached it and the
 environment variable that raises it (``OMNIWIDGET_MAX_<NAME>``, read by
 :func:`omniwidget._checks.limit`). The document's own cap on handles is
@@ -21,12 +21,11 @@ __all__ = ["MAX_MESH_VERTICES", "MAX_SAMPLES", "MAX_WEIGHTS", "check_mesh", "che
 MAX_SAMPLES = 1000
 #: The most vertices the adaptive mesh may have, counted on the handles' samples before it is
 #: built (each sample is a vertex; refinement adds a few thousand): ``OMNIWIDGET_MAX_MESH_VERTICES``
-#: raises it. 1,000 point handles made 21,000 vertices, 300 lines 29,000.
+#: raises it.
 MAX_MESH_VERTICES = 200_000
 #: The most weights (mesh vertices times controls) the bounded biharmonic solve may have:
-#: ``OMNIWIDGET_MAX_WEIGHTS`` raises it. 1,000 point handles are 21 million (1.2 GB and 154 s
-#: on a loaded machine), 300 crossing lines 12.5 million (0.81 GB, 36 s); at the cap a solve
-#: takes at most about 1.7 GB.
+#: ``OMNIWIDGET_MAX_WEIGHTS`` raises it. What documents near the cap take, in memory and time, is
+#: in ``bench/RESULTS.md``, "Limits".
 MAX_WEIGHTS = 30_000_000
 
 
