@@ -229,7 +229,7 @@ def _singular_value_ratio_minus_one(jac: NDArray[np.float64]) -> NDArray[np.floa
     With the second row negated where the determinant is negative (the singular values stay),
     ``s1 + s2 = |(a + d, b - c)|``, ``s1 - s2 = |(a - d, b + c)|`` and ``s1 s2 = ad - bc``, so
     ``s1 / s2 - 1 = q (p + q) / (2 det)`` with no difference of close numbers: exact to rounding
-    for nearly conformal maps, where an SVD loses digits (and about 8x faster than one).
+    for nearly conformal maps, where an SVD loses digits (and faster than one).
     Infinite where a matrix is singular, NaN where it is zero.
     """
     a, b, c, d = jac[..., 0, 0], jac[..., 0, 1], jac[..., 1, 0], jac[..., 1, 1]
@@ -1287,9 +1287,9 @@ def kink(
     -----
     A great circle is curved in the equirectangular image (except meridians and the
     equator), so the input has a figure of its own: 0 for the equator and the meridians,
-    0.09-2.1 (median 0.74) over the 232 edges continuing past a marked piece in seeds 0-19
-    of the ``"short"``, ``"long"`` and ``"mixed"`` families
-    (:func:`omniwidget.evaluate.scenes.family_scene`), more where an edge climbs towards a pole.
+    a few degrees of turn per degree of arc at most for the edges of the generated rooms
+    (:func:`omniwidget.evaluate.scenes.family_scene`; the figures are in ``bench/RESULTS.md``),
+    more where an edge climbs towards a pole.
     A marked piece straightened by its own Möbius map and an unmarked remainder left where
     it was meet in a turn of about the angle between them, spread over the blend's
     transition: a faithful warp keeps the output's figure close to the input's.
@@ -1354,7 +1354,7 @@ def kink(
 
 
 def point_reach_profile(result: Any, index: int, distances: ArrayLike, directions: int = 24, step: float = 0.02) -> dict[str, NDArray]:
-    """What a point handle's turn and zoom do as a function of the distance from its target (issue 39).
+    """What a point handle's turn and zoom do as a function of the distance from its target.
 
     On rings of ``directions`` output points at each distance from the handle's target the
     warp's inverse map (``result.inverse_points``, the blend the image is resampled by,

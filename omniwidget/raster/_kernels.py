@@ -14,10 +14,10 @@ not allow two threads to launch kernels at once, as the editor's preview and a f
 warp may).
 
 The kernels themselves are module-level functions of :mod:`omniwidget._numba_kernels`,
-so numba's on-disk cache serves every new process (issue 18): the first warp in a fresh
+so numba's on-disk cache serves every new process: the first warp in a fresh
 process reads them instead of compiling them. Each is also kept on disk as plain machine
 code (:mod:`omniwidget._native`), which a new process loads with llvmlite alone
-without importing numba: about half a second less before a fresh process's first warp.
+without importing numba, which a fresh process's first warp would otherwise wait for.
 Every kernel takes C-contiguous, writeable arrays (:func:`_plain`), one type per argument.
 
 Without numba (``pip install numba``, or the ``fast`` extra), or with the environment
@@ -204,7 +204,7 @@ def split_sum(
     return fixed, apart
 
 
-def blend_blocks(
+def blend_blocks(  # noqa: PLR0913 - the kernel's flat arrays (one array per argument, as numba takes them) and the walk's two knobs
     cells: NDArray[np.bool_],
     samples: NDArray[np.int32],
     planes: NDArray[np.float64],

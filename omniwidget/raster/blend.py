@@ -160,12 +160,12 @@ def mesh_blended_inverse(
 ) -> GridInverse:
     """``blended_inverse(inverses, mesh_pixel_weights(faces, vertex_weights, face, bary, np.float64), "double")``, faster.
 
-    The still background keeps each control's weights local (on the rooms and photos measured, 4% of the pixel and
-    control pairs are not 0): in each band of :data:`_BAND` rows a control's weights are interpolated, and its map
-    evaluated, only on the box of the pixels whose triangle has a vertex where its weight is not 0. The sums are the
-    same as over the whole grid (the other pixels add 0), in the same order; numpy's vectorised sines and cosines
-    may round a shorter row's elements differently, by 3e-14° at most as measured. 2.9 times as fast as the
-    dense evaluation on a room of long lines in the default mode, 1.2 times in the paper's (weights everywhere).
+    The still background keeps each control's weights local (few pixel and control pairs are not 0): in each band
+    of :data:`_BAND` rows a control's weights are interpolated, and its map evaluated, only on the box of the pixels
+    whose triangle has a vertex where its weight is not 0. The sums are the same as over the whole grid (the other
+    pixels add 0), in the same order; numpy's vectorised sines and cosines may round a shorter row's elements
+    differently, in the last digits. The gain is largest in the default mode and small in the paper's (weights
+    everywhere); the figures are in ``bench/RESULTS.md``.
 
     Parameters
     ----------

@@ -164,12 +164,11 @@ def warp_in_strips(
     order : {"nearest", "bilinear", "bicubic"}
     map_width : int
         Width of the grid the method runs on (even; at most ``width``): the output's
-        coordinates are interpolated from it. On rooms with points, lines and cages a grid a
-        quarter of the output's width placed 99.9% of the pixels within 0.42 px of the map
-        computed at the output's width and all within 1.3 px (at the kinks of the weights
-        near handles), half of it within 0.16 and 0.75 px (tests/test_any_size.py). Where the
-        method untangled or gave way, it did so on this grid: at another width it may give
-        way otherwise (both one-to-one).
+        coordinates are interpolated from it: a coarser grid places the pixels a little
+        farther from the map computed at the output's width, most at the kinks of the
+        weights near handles (``tests/test_any_size.py`` bounds it; the figures are in
+        ``bench/RESULTS.md``). Where the method untangled or gave way, it did so on this
+        grid: at another width it may give way otherwise (both one-to-one).
     rows : int, optional
         Output rows per strip; default :func:`strip_rows` of the width.
     warn : bool

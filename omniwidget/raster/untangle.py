@@ -393,8 +393,8 @@ def _lbfgs(fn: Callable[[NDArray[np.float64]], tuple[float, NDArray[np.float64]]
     """Limited-memory BFGS (the two-loop recursion, 8 pairs) with a backtracking line search that refuses infinite energy.
 
     Written here rather than taken from ``scipy.optimize.minimize(method="L-BFGS-B")``,
-    whose bounded Fortran step costs about 2 ms a call on these few thousand unknowns, more
-    than the energy itself.
+    whose bounded Fortran step costs more per call on these few thousand unknowns than the
+    energy itself.
     """
     f, g = fn(x)
     pairs: list[tuple[NDArray[np.float64], NDArray[np.float64], float]] = []
