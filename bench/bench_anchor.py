@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Issue 9's figures: the still background (``options.anchor``) against the paper's method on the same handles.
+"""The still background's figures: the still background (``options.anchor``) against the paper's method on the same handles.
 
 Usage::
 

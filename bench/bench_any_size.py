@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Panoramas of any size (issue 38): warps of panoramas 8k to 64k wide, time and peak memory, run on demand.
+"""Panoramas of any size: warps of panoramas 8k to 64k wide, time and peak memory, run on demand.
 
 Usage::
 

@@ -29,13 +29,13 @@ width; per family and mode the table aggregates over the half's scenes:
   the point handles (:func:`~omniwidget.evaluate.quality.point_fidelity`);
 - cages: the largest error of a cage's rigid motion inside it, px
   (:func:`~omniwidget.evaluate.quality.cage_fidelity`, against the rotation that made its targets);
-- reach (a table of its own, issue 39): each point handle's asked zoom and turn against what is seen at a third of
+- reach (a table of its own): each point handle's asked zoom and turn against what is seen at a third of
   its reach (where they should hold to 10% and 2°) and what is left at the reach;
 - relaxed lines: how many lines are farther than 0.5 px from straight (``result.quality.relaxed``);
 - warp: the median and the largest seconds of ``warp`` (wall clock, after one warm-up warp; the machine's
   other load counts too).
 
-At the end, one table of issue 17's figures per family and mode: medians, the worst
+At the end, one table of the default mode's figures per family and mode: medians, the worst
 scene, and how many scenes meet every figure the issue asks of the default mode (no
 fold-over; distortion mean and p99 and the mean displacement at most 0.05, 0.5 and 0.5°, or
 0.1, 1.0 and 1° for the long lines; lines within 0.5 px; points within 0.25 px, 1% and
@@ -115,7 +115,7 @@ def measure(image: np.ndarray, doc: Handles, truth: dict[str, Any]) -> dict[str,
 
 
 def reach(result: Any, index: int) -> dict[str, Any]:
-    """What a point handle's turn and zoom are seen to do at a third of its reach and at its reach (issue 39).
+    """What a point handle's turn and zoom are seen to do at a third of its reach and at its reach.
 
     The magnification (one over the mean singular value of the inverse map) and the turn, on 24 output points
     a ring (:func:`~omniwidget.evaluate.quality.point_reach_profile`), against the handle's own zoom and turn.
@@ -258,14 +258,14 @@ def table(family: str, rows: dict[str, list[dict[str, Any]]], width: int) -> str
     return "\n".join(out)
 
 
-#: Issue 17's figures for the default mode: (fold-over, distortion mean, distortion p99, displacement °) at most.
+#: The figures asked of the default mode: (fold-over, distortion mean, distortion p99, displacement °) at most.
 LONG_TARGETS = (0.0, 0.1, 1.0, 1.0)
 TARGETS = {"long": LONG_TARGETS, "room_edges": LONG_TARGETS, "suggested": LONG_TARGETS}  # the suggestions are 50-180° long
 TARGETS_SHORT = (0.0, 0.05, 0.5, 0.5)  # every other family: short lines, cages and points
 
 
 def targets(records: list[dict[str, Any]]) -> str:
-    """One row per family and mode: medians, the worst scene, and how many scenes meet issue 17's figures."""
+    """One row per family and mode: medians, the worst scene, and how many scenes meet the default mode's figures."""
     head = [
         "family",
         "mode",
@@ -347,7 +347,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--families", default=",".join(FAMILIES), help="comma list, of: " + ", ".join(FAMILIES))
     parser.add_argument("--json", type=Path, help="write every per-scene figure here")
     parser.add_argument("--spread", type=float, help="omniwidget.raster.untangle.SPREAD for this run (for choosing it)")
-    parser.add_argument("--load", type=Path, help="print the summary of issue 17's figures from a --json file, without warping")
+    parser.add_argument("--load", type=Path, help="print the summary of the default mode's figures from a --json file, without warping")
     args = parser.parse_args(argv)
     if args.load is not None:
         records = json.loads(args.load.read_text())

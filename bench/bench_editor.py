@@ -6,7 +6,7 @@ Usage::
     python bench/bench_editor.py              # kernel side: 5 edits of the 12-handle scene
     python bench/bench_editor.py --browser    # also the real-browser figure (runs tests/test_editor_browser.py)
 
-What it measures (issue 5: "the time from mouse release to the new result image on screen
+What it measures (the editor's target: "the time from mouse release to the new result image on screen
 for a 12-handle scene at preview size: at most 1 s now"):
 
 1. Kernel side: an :class:`omniwidget.Editor` on the blending benchmark's scene

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Issue 18, part 1: a fresh process, with the compiled kernels read from disk.
+"""A fresh process, with the compiled kernels read from disk.
 
 Usage::
 

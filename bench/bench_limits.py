@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""How time and memory grow with the handles and the panorama's size (issue 35's limits), run on demand.
+"""How time and memory grow with the handles and the panorama's size (the method's limits), run on demand.
 
 Usage::
 
@@ -13,7 +13,7 @@ its peak resident memory (``VmHWM``) beside the same subprocess's before the war
 that the growth is the warp's own; ``pixels`` runs the command line and gives its peak. Handles are drawn with a fixed seed: points anywhere on
 the sphere moved 2 degrees, lines 5 to 15 degrees long, rectified. The figures chose the
 caps of :mod:`omniwidget.method.limits` and the memory estimate of
-:func:`omniwidget.io.images.warp_bytes` (bench/RESULTS.md, "Limits (issue 35)").
+:func:`omniwidget.io.images.warp_bytes` (bench/RESULTS.md, "Limits").
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Issue 9, part 2: which straightening map disturbs least, measured.
+"""Which straightening map disturbs least, measured.
 
 Usage::
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Issue 18, part 2: the live drag in a real browser (JupyterLab, Debian's Chromium, WebGL2 in software).
+"""The live drag in a real browser (JupyterLab, Debian's Chromium, WebGL2 in software).
 
 Usage::
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""How long the teaching notebooks take to run top to bottom (issue 6 aimed at under 5 minutes for all).
+"""How long the teaching notebooks take to run top to bottom (the aim: under 5 minutes for all).
 
 Usage::
 

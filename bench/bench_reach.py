@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""A point handle's reach (issue 39): what a turn and a zoom do with the distance from the handle.
+"""A point handle's reach: what a turn and a zoom do with the distance from the handle.
 
 Usage::
 
@@ -13,7 +13,7 @@ For a lone point handle at ``--position`` with the default options, one warp per
   of the reach (worst against the asked zoom) and its range from a third to the reach;
 - the rotation at a third, two thirds and the reach;
 - the most the sphere moved beyond the reach;
-- ``before``: the same with the ladder off (the method before issue 39), at 1°, 2° and 5°;
+- ``before``: the same with the ladder off (the whole map mixed with the identity), at 1°, 2° and 5°;
 
 and the time of the method (``deform``) with and without the ladder, on the lone point
 and on the 12-handle room of ``bench/bench_untangle.py``.

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Ours against the paper's strongest rival, [10] (Carroll et al. 2009), per scene family and on the photos (issue 33).
+"""Ours against the paper's strongest rival, [10] (Carroll et al. 2009), per scene family and on the photos.
 
 Usage::
 

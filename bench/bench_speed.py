@@ -248,7 +248,7 @@ def frames() -> None:
 
 def write_results() -> None:
     lines = [
-        "# Speed figures (issue 7)",
+        "# Speed figures",
         "",
         f"Made by `python bench/bench_speed.py --write` on {datetime.date.today().isoformat()}: "
         f"{platform.platform()}, Python {platform.python_version()}, {os.cpu_count()} CPUs, "

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""One click, a straight photo (issue 36): ``ow.straighten`` on generated box rooms and on the photographs, run on demand.
+"""One click, a straight photo: ``ow.straighten`` on generated box rooms and on the photographs, run on demand.
 
 Usage::
 

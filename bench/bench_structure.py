@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Structure first (issue 36): the suggested lines against the box's own edges, raw and chosen, run on demand (not a test).
+"""Structure first: the suggested lines against the box's own edges, raw and chosen, run on demand (not a test).
 
 Usage::
 

@@ -10,10 +10,10 @@ eq. (4), 2 points, a fixed cage), whose blend folds. Each round warps it warm (`
 the last result, as the editor does) twice, interleaved: once as the default mode does now
 (the blend filled in between the handles, :mod:`omniwidget.method.harmonic`, and the turned-over
 patches untangled, :mod:`omniwidget.raster.untangle`) and once with both off
-(``harmonic.FILL = False``, ``pipeline.UNTANGLE_ROUNDS = 0``: the warp as it was before issue 30).
+(``harmonic.FILL = False``, ``pipeline.UNTANGLE_ROUNDS = 0``: the warp with neither).
 A warm warp of the same document reuses the weights, and with them the fill's grid; its
 per-pixel part is in the time. ``--cold`` warps without ``previous=`` instead (the weights and
-the fill solved each time). It prints the medians, their ratio (issue 30 asks for at most 1.5),
+the fill solved each time). It prints the medians, their ratio (asked: at most 1.5),
 the fold-over each leaves and the untangling's and the fill's own medians. Nothing is asserted;
 the machine is shared, so only the ratio within one run means much.
 """
@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  filled and untangled (the default now): {now:.3f} s median, fold-over {100 * folds['untangled']:.4f}% of the sphere")
     print(f"  as before (neither):                    {before:.3f} s median, fold-over {100 * folds['as before']:.4f}% of the sphere")
     print(
-        f"  ratio {now / before:.2f} (issue 30: at most 1.5); the untangling itself {statistics.median(untangle):.3f} s median, "
+        f"  ratio {now / before:.2f} (asked: at most 1.5); the untangling itself {statistics.median(untangle):.3f} s median, "
         f"the fill (its solve, where the weights were solved anew, and per pixel) {statistics.median(fill):.3f} s"
     )
     return 0

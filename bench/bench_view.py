@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""``omniwidget view`` on a large panorama: reading it whole against reading it only as sharp as the still needs (issue 34, part 3).
+"""``omniwidget view`` on a large panorama: reading it whole against reading it only as sharp as the still needs.
 
 Usage::
 

@@ -1,4 +1,4 @@
-"""Issue 9: the still background (``options.anchor``) and the least-motion rectifying maps.
+"""The still background (``options.anchor``) and the least-motion rectifying maps.
 
 On synthetic rooms with 6 to 10 lines only, rectified "all", at 2048 x 1024, with the
 suggested anchor distance, against the paper's method (``"anchor": null``) on the same
@@ -107,7 +107,7 @@ HELD_OUT_LIMITS = {10: {"distortion_mean": 0.07, "distortion_p99": 1.0}, 12: {"f
 @pytest.mark.slow
 @pytest.mark.parametrize(("seed", "n"), HELD_OUT, ids=[f"room{seed}" for seed, _ in HELD_OUT])
 def test_the_still_background_on_rooms_held_out_from_the_choice(seed, n):
-    """Issue 9's figures on the eight held-out rooms, at 2048 x 1024 (8-13 s each on a busy 2-core machine).
+    """The still background's figures on the eight held-out rooms, at 2048 x 1024 (8-13 s each on a busy 2-core machine).
 
     Measured: every line as straight as its own map (excess below 2e-13 px); fold-over 0 on seven rooms;
     the sphere shown 100%; distortion mean 0.016-0.023 and p99 0.32-0.41 on seven rooms; moved
@@ -200,8 +200,8 @@ def test_the_motion_metric_is_the_motion_to_second_order():
 
 @pytest.mark.parametrize("line", [((20.0, 30.0), (70.0, 45.0)), ((-46.7, 59.2), (19.4, 40.7)), ((170.0, -20.0), (-150.0, -35.0))])
 def test_the_kept_sphere_moves_least_near_the_line(line, monkeypatch):
-    """Issue 9, part 2: of the three ways to straighten a line, the least-motion one disturbs the sphere near it least
-    (its endpoints held no harder than its middle, ``END_KEEP = 1``); with the default ``END_KEEP`` (issue 30: a
+    """Of the three ways to straighten a line, the least-motion one disturbs the sphere near it least
+    (its endpoints held no harder than its middle, ``END_KEEP = 1``); with the default ``END_KEEP`` (a
     line's ends held still, so the edge past them does not kink) the ends move less than half as far, and the sphere
     near the line still moves less than under the paper's eq. (10). Measured at END_KEEP 10: ends 0.42x, 0.42x and
     0.42x of the least-motion ones; near motion 0.76x, 0.77x and 0.76x of eq. (10)'s."""

@@ -1,4 +1,4 @@
-"""Panoramas of any size (issue 38): the tiled resampling beyond OpenCV's 32,767 pixels.
+"""Panoramas of any size: the tiled resampling beyond OpenCV's 32,767 pixels.
 
 OpenCV's ``remap`` keeps coordinates in 16 bits and refuses a source or a map of 32,767
 pixels a side or more. ``remap_panorama`` resamples such panoramas by tiles of the output,

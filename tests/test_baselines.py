@@ -93,7 +93,7 @@ def close_pair():
     return scene, doc, *_run_all(scene.image, doc)
 
 
-# --- the comparison of issue 6 --------------------------------------------------------
+# --- the blends compared (notebook 04) --------------------------------------------------------
 
 
 def test_bbw_neither_folds_nor_tears_on_the_room(room):

@@ -103,7 +103,7 @@ def _check_room_with_cage_and_point(seed: int, n_lines: int, width: int) -> None
     assert result.weights is not None
     _check_finite(result, scene.image)
     inverse = result.inverse_map(np.float64)
-    # the default mode never folds (issue 30). Room 6's blend (12 lines, eq. 4 line by line) folds 2 pixels where the
+    # the default mode never folds. Room 6's blend (12 lines, eq. 4 line by line) folds 2 pixels where the
     # pieces of two lines whose ends are 1° apart meet: one window untangles them, and the warning says so and names
     # the line (measured: the maps give way by up to 2.5 px there); room 1's blend folds nowhere, and nothing is said
     assert result.folds.area == 0
@@ -127,7 +127,7 @@ def test_rooms_with_lines_only_and_their_fold_overs_reported(seed, n_lines, anch
     """Lines rectified each by its own map: straight, the sphere shown; where the maps fold, a warning names
     the handles and the area, and none where they fold less than ``FOLD_WARNING_AREA``.
 
-    The paper's method (``anchor: null``) folds on such rooms (issue 9): 1.8% (room 2) and 0.73% (room 3),
+    The paper's method (``anchor: null``) folds on such rooms: 1.8% (room 2) and 0.73% (room 3),
     so the warning path is exercised whatever the default does. The default (the still background) folds
     1.1e-6 (room 2, below the warning's 1e-5) and 3.2e-5 (room 3, where two cut lines' ends meet).
     """

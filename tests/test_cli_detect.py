@@ -1,4 +1,4 @@
-"""``omniwidget level`` and ``omniwidget suggest`` (issue 22) on generated rooms whose edges and tilt are known exactly."""
+"""``omniwidget level`` and ``omniwidget suggest`` on generated rooms whose edges and tilt are known exactly."""
 
 from __future__ import annotations
 

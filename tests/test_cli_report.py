@@ -1,4 +1,4 @@
-"""What the command line says (issue 39): the closing line of warp, level, suggest and demo, ``--quiet``, refusals in its own words.
+"""What the command line says: the closing line of warp, level, suggest and demo, ``--quiet``, refusals in its own words.
 
 And the demo's pictures: the result as it is, the handles drawn apart.
 """

@@ -1,4 +1,4 @@
-"""Issue 17: what you mark is what you get in the default mode (the still background), on generated scenes.
+"""What you mark is what you get in the default mode (the still background), on generated scenes.
 
 Every scene comes from :func:`omniwidget.evaluate.scenes.family_scene`. The constants of the
 default mode were chosen on the even seeds (``python bench/bench_default.py --half choose``);
@@ -269,7 +269,7 @@ def _check_calmer(seed: int, width: int) -> None:
     assert ours.displacement < theirs.displacement / 6 and ours.straightness <= 0.5 * width / 1024
 
 
-#: bench/RESULTS.md's "Never fold" table (the harmonic fill and the lines' ends held, issue 30), default mode: the
+#: bench/RESULTS.md's "Never fold" table (the harmonic fill and the lines' ends held), default mode: the
 #: worst over the report half's 20 scenes per family at 1024 of (fold-over share, distortion mean, distortion p99,
 #: mean displacement °). The issue's figures (0, 0.05, 0.5, 0.5°; long lines 0, 0.1, 1.0, 1°) are not met on every
 #: scene; these are.
@@ -286,7 +286,7 @@ REPORT_WORST = {
 
 
 #: Seed 1 of each family at 512 (held out: the constants were chosen on even seeds), measured (distortion mean,
-#: p99, mean displacement °) with the harmonic fill and the lines' ends held (issue 30); none folds.
+#: p99, mean displacement °) with the harmonic fill and the lines' ends held; none folds.
 SEED_1_AT_512 = {
     "short": (0.0091, 0.182, 0.028),
     "long": (0.0547, 0.501, 0.331),
@@ -300,7 +300,7 @@ SEED_1_AT_512 = {
 
 @pytest.mark.parametrize("family", sorted(SEED_1_AT_512))
 def test_a_held_out_scene_of_each_family_meets_the_figures_at_512(family):
-    """The fast loop's held-out check of the background (issue 31): seed 1 of each family, the issue's figures (mean
+    """The fast loop's held-out check of the background: seed 1 of each family, the figures asked for (mean
     0.05, p99 0.5, moved 0.5°; long lines 0.1, 1.0, 1°) and within 1.2x of what was measured (a 2x regression fails)."""
     mean, p99, moved = SEED_1_AT_512[family]
     asked = (0.1, 1.0, 1.0) if family == "long" else (0.05, 0.5, 0.5)

@@ -1,4 +1,4 @@
-"""The vectorised merging of omniwidget.detect.lines against the loops it replaced (issue 38, part 5).
+"""The vectorised merging of omniwidget.detect.lines against plain loops that say the same.
 
 :func:`~omniwidget.detect.lines.merge_arcs`, :func:`~omniwidget.detect.lines.pair_bands` and
 :func:`~omniwidget.detect.lines.snap_ends` look only at the arcs a grid of their points finds
@@ -30,7 +30,7 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 #: collected as nothing.
 PHOTOS = ("brooklyn_street_12k", "city_parking", "courtyard", "grabodrertorv", "hotel_room", "lamppost", "studio_office")
 
-# --- the reference: the loops as they were before issue 38, part 5 ----------------------
+# --- the reference: the merging written as plain loops ----------------------
 
 
 def _loop_merge_arcs(

@@ -390,7 +390,7 @@ def test_a_refused_command_while_computing_keeps_the_result_coming(editor, monke
     assert "handles[3]" in status["error"]  # the message outlives the result that arrived after it
 
 
-# --- the editor never loses work (issue 8) ------------------------------------------------------
+# --- the editor never loses work ------------------------------------------------------
 POINT = {"kind": "point", "position": [100.0, -20.0], "scale": 2.0}
 
 
@@ -691,7 +691,7 @@ ed.rectify_all()
 
 @pytest.mark.slow  # 8 fresh processes (about 20 s on a busy 2-core machine): the full suite; the fast loop runs 1 (below)
 def test_a_process_that_ends_while_a_preview_computes_exits_cleanly():
-    """Issue 18, part 6: the script exits right after asking for a preview; the worker is stopped, never cut off inside
+    """Exit while computing: the script exits right after asking for a preview; the worker is stopped, never cut off inside
     compiled code (it aborted with "FATAL: exception not rethrown" in 1 run of 12)."""
     _check_exits_cleanly(8)
 
@@ -712,7 +712,7 @@ def _check_exits_cleanly(runs: int) -> None:
     assert codes == [0] * runs, codes
 
 
-# --- save image (issue 18) ------------------------------------------------------------------------------------------
+# --- save image ------------------------------------------------------------------------------------------
 
 
 def full_size(ed: Editor) -> np.ndarray:
@@ -744,7 +744,7 @@ def test_save_image_keeps_a_jpegs_format_and_its_pixels_are_the_encoders_own(roo
     reference = tmp_path / "reference.jpg"
     ow.write_image(reference, full_size(ed))
     assert np.array_equal(ow.read_image(path), ow.read_image(reference))
-    # the encoder's bytes, with the panorama's metadata brought up to date added before them (issue 34: GPano, EXIF, ICC)
+    # the encoder's bytes, with the panorama's metadata brought up to date added before them (GPano, EXIF, ICC)
     from omniwidget.io.metadata import output_metadata, read_metadata, with_metadata
 
     height, width = ed.image.shape[:2]

@@ -269,7 +269,7 @@ def pane_pixels(nb, handle: int) -> np.ndarray:
 
 
 def test_weights_pane_renders_rotates_and_follows_the_selection(jupyter_server, browser):
-    """Issue 6: the pyvista pane's html backend draws the mesh in a WebGL canvas; clicking a handle in the editor recolours it."""
+    """The pyvista pane's html backend draws the mesh in a WebGL canvas; clicking a handle in the editor recolours it."""
     bh.one_front_end(jupyter_server, "the weights pane")
     bh.write_notebook(jupyter_server.root / "pane.ipynb", PANE_NOTEBOOK)
     requests: list[str] = []
@@ -352,7 +352,7 @@ _bbw.bbw = _broken
 
 
 def test_a_kernel_error_mid_edit_and_a_kernel_restart_lose_no_handles(jupyter_server, browser):
-    """Issue 8: the solver raises during an edit (the message shows, the handles stay); after a restart they come back."""
+    """Nothing lost: the solver raises during an edit (the message shows, the handles stay); after a restart they come back."""
     bh.write_notebook(jupyter_server.root / "restart.ipynb", RESTART_NOTEBOOK)
     with bh.NotebookPage(browser, jupyter_server, "restart.ipynb") as nb:
         nb.run_all()
@@ -616,7 +616,7 @@ def test_a_line_over_the_pole_is_kept_drawn_dashed_and_its_warning_shows_on_hove
         assert nb.console_errors() == [], "\n".join(nb.console_errors())
 
 
-# --- save image (issue 18): the button writes the full-size result next to the panorama and offers it for download ---
+# --- save image: the button writes the full-size result next to the panorama and offers it for download ---
 
 SAVE_IMAGE_NOTEBOOK = [
     "import json\nimport omniwidget as ow\n\ned = ow.Editor('save_image/room.png', height=440)\ned",
@@ -675,7 +675,7 @@ def test_save_image_writes_the_full_size_result_and_downloads_it(jupyter_server,
 
 
 def test_a_points_reach_ring_dragged_sets_its_reach_and_undo_brings_it_back(jupyter_server, browser):
-    """Issue 39: the selected point's reach is a ring round it (the kernel's default, 15° here); dragged, ``reach`` is one edit."""
+    """A point's reach: the selected point's reach is a ring round it (the kernel's default, 15° here); dragged, ``reach`` is one edit."""
     point = {"kind": "point", "position": [100.0, -10.0], "scale": 1.5}
     with _editor_with(jupyter_server, browser, "reach", point, "the result with the line and the point") as (nb, client, generation):
         page = nb.page

@@ -1,4 +1,4 @@
-"""Suggested lines and Level in the editor (issue 22, part 3), without a browser: the session and the widget's messages.
+"""Suggested lines and Level in the editor, without a browser: the session and the widget's messages.
 
 A generated room with a known tilt: "Suggest lines" runs in the background and shows the
 suggestions; accepting one, or all, is one undoable edit, dropping them is none; "Level"

@@ -1,4 +1,4 @@
-"""Suggest lines and Level in a real browser (issue 22, part 3): JupyterLab, Debian's Chromium, a person's mouse (Playwright).
+"""Suggest lines and Level in a real browser: JupyterLab, Debian's Chromium, a person's mouse (Playwright).
 
 The editor opens a generated room taken with a tilted camera (known pitch and roll, written
 to a file). Suggest lines shows the suggestions dashed on the input; a click on one accepts

@@ -1,4 +1,4 @@
-"""Keys as in JupyterLab (issue 18, part 3), in a real browser: Debian's Chromium through Playwright.
+"""Keys as in JupyterLab, in a real browser: Debian's Chromium through Playwright.
 
 With the keyboard in the editor (a click on its canvas), the notebook's own keys that a
 person expects anywhere reach it: Ctrl+S saves the notebook, Ctrl+Enter and Shift+Enter run

@@ -1,4 +1,4 @@
-"""The editor's status area, in Python (issue 36, part 4): what the session says, grouped and current.
+"""The editor's status area, in Python: what the session says, grouped and current.
 
 Each warning comes with a kind (the class of :class:`~omniwidget.raster.pipeline.BlendWarning`
 that made it, never read from its text), the widget's groups; the quality line measures the

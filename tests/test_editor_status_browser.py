@@ -1,4 +1,4 @@
-"""The status area a person can read (issue 36, part 4), in a real browser: JupyterLab and Notebook 7, an 800 px tall window.
+"""The status area a person can read, in a real browser: JupyterLab and Notebook 7, an 800 px tall window.
 
 On the bundled hotel room: Suggest lines, Accept all, Level, as a person clicks them. Then the
 whole editor fits in the window (no scrolling past 800 px), Suggest lines' prompt is gone

@@ -1,4 +1,4 @@
-"""Straighten and Level in the editor, in a real browser (issue 36): JupyterLab and Notebook 7.
+"""Straighten and Level in the editor, in a real browser: JupyterLab and Notebook 7.
 
 On the bundled hotel room a person clicks Straighten: the handles it used appear in the
 kernel's document (line handles, ``options.up`` set, the still background on) and the result

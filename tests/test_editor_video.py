@@ -1,4 +1,4 @@
-"""The editor opens a video (issue 21, part 2), in plain Python: a frame to draw on, the slider's frames, Save video.
+"""The editor opens a video, in plain Python: a frame to draw on, the slider's frames, Save video.
 
 A tiny synthetic clip (256 x 128, 12 frames, each the bundled sample turned a little more
 than the last, so that the frames differ) is opened by :class:`EditingSession` and by

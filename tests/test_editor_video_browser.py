@@ -1,4 +1,4 @@
-"""The editor opens a video (issue 21, part 2), in a real browser: JupyterLab, Debian's Chromium (Playwright).
+"""The editor opens a video, in a real browser: JupyterLab, Debian's Chromium (Playwright).
 
 ``Editor(clip)`` on a tiny synthetic clip (tests/test_editor_video.py's): the frame slider is
 shown; moving it to another frame shows that frame in the input pane (its pixels change, the

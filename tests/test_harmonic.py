@@ -1,4 +1,4 @@
-"""The harmonic fill between the handles (omniwidget/method/harmonic.py, issue 30's "no swirl").
+"""The harmonic fill between the handles (omniwidget/method/harmonic.py: "no swirl").
 
 What it promises, checked on generated rooms and on maps whose answer is known:
 

@@ -1,4 +1,4 @@
-"""Issue 8, images: whatever file or array comes in, a result or one clear message naming it.
+"""Reliability of images: whatever file or array comes in, a result or one clear message naming it.
 
 Bad files (cut short, damaged, empty, not images), tiny and non-2:1 images, every sample
 type and channel layout through a warp, EXIF orientation, and a 12000 x 6000 panorama

@@ -150,7 +150,7 @@ print(json.dumps({"hits": sum(sum(f.stats.cache_hits.values()) for f in kernels)
 
 @pytest.mark.slow  # three fresh processes, the first compiling every kernel into an empty cache (20 s): the full suite
 def test_the_kernels_compile_once_per_installation_not_per_process(tmp_path):
-    """Issue 18, part 1: a second fresh process reads every kernel from numba's cache, and the cache does not grow."""
+    """A fresh process: a second fresh process reads every kernel from numba's cache, and the cache does not grow."""
     import json
     import os
     import subprocess

@@ -1,4 +1,4 @@
-"""Panoramas larger than memory (issue 38, parts 2-3): read a patch at a time from disk, reduced in strips, written in strips.
+"""Panoramas larger than memory: read a patch at a time from disk, reduced in strips, written in strips.
 
 A panorama on disk (:class:`omniwidget.io.large.DiskPanorama`) must give the bytes the
 same panorama in memory gives, through the tiled resampling; the strip writers must give

@@ -1,4 +1,4 @@
-"""Issue 30: the default mode never folds the sphere; the paper's mode stays as it is.
+"""Never fold: the default mode never folds the sphere; the paper's mode stays as it is.
 
 Every scene is warped by the default options and checked on the output grid: no pixel turned
 over, on the map that placed the pixels and on the exact blend, and every marked line within
@@ -58,7 +58,7 @@ def _check_lines(result) -> None:
         if w.endswith("cross each other in the output"):  # a conflict said: suggested room 3 at 1024, a line across
             gave_way |= {int(i) for i in re.findall(r"handles\[(\d+)\]", w)}  # one kept as it is by a pole (0.56 px)
     # a line that crosses one of those in the input meets it where it gave way (suggested room 3 at 1024: handles[19],
-    # 0.585 px since issue 30 holds lines' ends, crosses handles[12], kept by a pole and giving way where it folded)
+    # 0.585 px with the lines' ends held, crosses handles[12], kept by a pole and giving way where it folded)
     order = [i for i, h in enumerate(result.handles.handles) if isinstance(h, LineHandle)]
     arcs = [coords.geodesic(result.handles.handles[i].start, result.handles.handles[i].end, np.linspace(0.0, 1.0, 65)) for i in order]
     pairs = [(order[a], order[b]) for a, b in crossing_pairs(arcs)]

@@ -96,7 +96,7 @@ def _table(nb, tag: str) -> dict:
 
 
 def test_notebook_04_table_bbw_is_smooth_piecewise_tears_gaussian_bends(executed):
-    """Issue 6: on the notebook's own room, BBW neither folds nor tears; piecewise tears; the Gaussian bends close lines."""
+    """On the notebook's own room, BBW neither folds nor tears; piecewise tears; the Gaussian bends close lines."""
     nb = executed(next(p for p in NOTEBOOKS if p.name.startswith("04_")))
     room = _table(nb, "comparison-room")
     bbw, piecewise, gaussian = room["bbw"], room["piecewise_constant"], room["gaussian_2017"]
@@ -173,8 +173,8 @@ def _figures(line: str) -> dict[str, float]:
     }
 
 
-def test_notebook_04_still_background_figures_meet_issue_9(executed):
-    """Issue 9: what the section prints is right, not only quoted: the still background meets the issue's figures
+def test_notebook_04_still_background_meets_its_figures(executed):
+    """What the section prints is right, not only quoted: the still background meets the figures it was asked for
     (no fold-over, at least 99.5% shown, distortion mean 0.05 and p99 0.5, moved 0.5°, the far field still: below
     0.005°, the printout's resolution), and the paper's method (anchor: null) on the same handles is far worse."""
     nb = executed(next(p for p in NOTEBOOKS if p.name.startswith("04_")))

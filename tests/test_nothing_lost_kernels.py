@@ -1,4 +1,4 @@
-"""Issue 35, part 5: stored machine code, and numba's cache of the kernels, are used only when they are the user's own.
+"""A trusted kernel store: stored machine code, and numba's cache of the kernels, are used only when they are the user's own.
 
 The stored native kernels (:mod:`omniwidget._native`) are machine code that a process loads
 and runs; numba's cache holds pickles that numba unpickles. Both are read only from files

@@ -1,4 +1,4 @@
-"""Issue 35, parts 1 and 4: no output names an input, the map or another output; no temporary file is left behind.
+"""Nothing lost: no output names an input, the map or another output; no temporary file is left behind.
 
 Each case is one the issue found on main, run as a person would run it:
 

@@ -1,4 +1,4 @@
-"""Issue 35, part 2: editors never erase each other's handles, and a FIFO at the autosave path hangs nothing.
+"""Nothing lost: editors never erase each other's handles, and a FIFO at the autosave path hangs nothing.
 
 Each test sets up what lost work on main before (two editors of one panorama, the last
 writer winning; Save of ``day2/room.png`` writing over ``day1/room.png``'s handles; a FIFO

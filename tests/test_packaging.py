@@ -1,4 +1,4 @@
-"""Issue 20: the package's metadata: license (PEP 639), citation, and dependency ranges that stop at what was tested.
+"""The package's metadata: license (PEP 639), citation, and dependency ranges that stop at what was tested.
 
 Nothing is built here: pyproject.toml, LICENSE and CITATION.cff are read as text.
 """

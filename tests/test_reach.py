@@ -1,4 +1,4 @@
-"""Issue 39, part 1: a point handle's turn and zoom reach a region (omniwidget.method.reach).
+"""A point handle's turn and zoom reach a region (omniwidget.method.reach).
 
 Measured by :func:`omniwidget.evaluate.quality.point_reach_profile` through the blend the
 image is resampled by. The cases come from a seeded generator: the constants
@@ -14,7 +14,7 @@ What is asserted, with ``R`` the reach:
 
 The envelope tested: any zoom in [0.5, 2] without a turn, any turn in [-80°, 80°] without a
 zoom, and zooms in [0.5, 2] with turns in [-30°, 30°]. Past it a zoom in combined with a
-large turn cannot keep 0.8 (bench/RESULTS.md, issue 39: the shear a turn needs over the
+large turn cannot keep 0.8 (bench/RESULTS.md, "a point handle's reach": the shear a turn needs over the
 annulus and the zoom's own slope add up).
 """
 

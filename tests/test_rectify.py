@@ -96,7 +96,7 @@ def test_rooms_rectified_all_keep_joints_lines_straight_and_points_near(seed, co
     for landed in joints:
         assert coords.angular_distance(landed[:, None], landed[None]).max() * W / 360 < 0.5
     # the lines stay where they were drawn: their samples move by less than 1.5° on average (measured 1.31° and 1.20° on
-    # the rooms of 9 and 12 lines since issue 30 holds a line's ends 10x harder than its middle: less than 1° before),
+    # the rooms of 9 and 12 lines, a line's ends held 10x harder than its middle),
     # less than the paper's eq. (10) makes them move (it holds the endpoints, to 0.02°, and swings the middles: 1.64°, 1.45°)
     paper = build_constraints(Handles(doc.handles, Options(anchor=None)))
     assert paper.rectified.displacement < 0.05

@@ -1,4 +1,4 @@
-"""Issue 8: any handles document is either refused by name or warped to a finite image; odd geometry; determinism.
+"""Reliability: any handles document is either refused by name or warped to a finite image; odd geometry; determinism.
 
 The fuzzing here generates documents in two families, with hypothesis:
 
@@ -294,7 +294,7 @@ FIXED_CAGE_PX = 1e-12
 #: README (Odd geometry): lines that cross, touch, overlap or repeat, and a 179° line, come out straight,
 #: measured densely along their whole arcs (``Result.quality``): the worst line at 512 in the default mode
 #: measured 0.096-0.27 px (at the constrained samples alone it was 0.004-0.020; 0.27 the second of two lines on one
-#: great circle, overlapping, since issue 30 holds lines' ends: 0.19 before), in the paper's 0.038-0.100 px at the
+#: great circle, overlapping, with the lines' ends held), in the paper's 0.038-0.100 px at the
 #: samples. The bounds are about 1.3x and 2x those.
 STRAIGHT_PX = {"default": 0.35, "paper": 0.2}
 

@@ -294,7 +294,7 @@ def test_bad_helper_arguments(small_room: Scene) -> None:
         subdivide_line(small_room.lines[0], 0.0)
 
 
-# --- the families of issue 30: the room's own edges, and the detector's suggestions ------------------
+# --- the families where the default mode folded: the room's own edges, and the detector's suggestions ------------------
 
 
 def _samples(handle, count: int = 101) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Issue 20: the JSON Schema of the handles file (omniwidget/document/schema.py) says what the library accepts.
+"""The JSON Schema of the handles file (omniwidget/document/schema.py) says what the library accepts.
 
 The check, on hand-picked and fuzzed documents: every document :meth:`Handles.from_dict`
 accepts is valid under the schema, and every document the schema refuses the library

@@ -1,4 +1,4 @@
-"""scikit-image takes a warp's inverse map as it is (issue 20): ``skimage.transform.warp`` reproduces ``ow.warp``'s image."""
+"""scikit-image takes a warp's inverse map as it is: ``skimage.transform.warp`` reproduces ``ow.warp``'s image."""
 
 import numpy as np
 import pytest

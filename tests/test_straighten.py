@@ -1,4 +1,4 @@
-"""``ow.straighten`` and ``omniwidget straighten`` (issue 36): level, find the structure, rectify it, hand back the handles.
+"""``ow.straighten`` and ``omniwidget straighten``: level, find the structure, rectify it, hand back the handles.
 
 Generated rooms whose camera tilt and edges are known exactly: the result is one-to-one,
 every line used is straight along its whole length, the room's vertical edges come out

@@ -1,4 +1,4 @@
-"""Structure first (issue 36): the kinds of the suggested lines, texture left out, a consistent set chosen.
+"""Structure first: the kinds of the suggested lines, texture left out, a consistent set chosen.
 
 The constants of omniwidget.detect.structure were chosen on the even seeds of
 :func:`omniwidget.evaluate.scenes.box_room`; the rooms measured here are odd seeds.
@@ -214,7 +214,7 @@ def test_box_rooms_are_reproducible_and_varied():
 
 @pytest.mark.slow
 def test_twenty_held_out_box_rooms():
-    """The report half, odd seeds 1-39 (bench/RESULTS.md, "Structure first (issue 36)").
+    """The report half, odd seeds 1-39 (bench/RESULTS.md, "Structure first").
 
     Measured: coverage worst 0.754, median 0.911 (every line found: 0.835, 0.925; its first
     40: 0.533, 0.771); precision worst 0.812, median 0.970 (every line: 0.119, 0.187); both
