@@ -57,6 +57,10 @@ def test_straighten_levels_rectifies_and_hands_back_the_handles(room, done):
     assert len(doc.handles) == len(s.used) >= 8 and all(h.kind == "line" and h.rectify for h in doc.handles)
     assert {x.kind for x in s.used} >= {"vertical", "horizontal"}
     assert all(isinstance(why, str) and why for _, why in s.dropped)
+    kinds = {"texture", "crossing a kept line", "beside a kept line", "short and neither vertical nor horizontal"}
+    kinds |= {"beyond the first ones kept", "over a pole", "crossing in the output", "gave way in the warp"}
+    assert {why.kind for _, why in s.dropped} <= kinds and "texture" in {why.kind for _, why in s.dropped}
+    assert s.summary().endswith(")") and " texture" in s.summary()  # counted by kind
     # one-to-one, and every line used straight along its whole length (measured densely through the map that placed the pixels)
     q = done.result.quality
     assert done.result.folds.area == 0 and done.result.gave_way == ()

@@ -107,6 +107,7 @@ def test_a_grid_of_tiles_is_dropped_as_texture_and_says_why():
     reasons = {s.start: why for s, why in choice.dropped}
     for s in tiles:
         assert "crossed by" in reasons[s.start] and "texture" in reasons[s.start], reasons[s.start]
+        assert reasons[s.start].kind == "texture"  # the kind is data, not found again in the words
     assert all(s.kind == "vertical" for s in choice.kept)
     j = junctions(walls + tiles, (0.0, 90.0))
     assert list(j.crossed[:2]) == [0, 0] and min(j.crossed[2:]) >= 4
@@ -118,7 +119,7 @@ def test_of_two_crossing_lines_the_better_is_kept():
     choice = choose_structure([short_one, long_one], (0.0, 90.0))
     assert [s.start for s in choice.kept] == [long_one.start]
     (dropped, why), = choice.dropped
-    assert dropped.start == short_one.start and why == "crosses suggested line 1"
+    assert dropped.start == short_one.start and why == "crosses suggested line 1" and why.kind == "crossing a kept line"
 
 
 def test_the_same_edge_found_twice_is_kept_once():
@@ -127,6 +128,24 @@ def test_the_same_edge_found_twice_is_kept_once():
     choice = choose_structure([edge, again], (0.0, 90.0))
     assert len(choice.kept) == 1 and choice.kept[0].start == edge.start
     assert "of suggested line 1 along" in choice.dropped[0][1] and "(the same edge)" in choice.dropped[0][1], choice.dropped
+
+
+def test_an_edge_found_in_pieces_is_kept_whole():
+    # a vertical edge, lon 20° from lat -30° to 25°, found as a long piece and a shorter one past its top,
+    # the shorter 0.3° off the long one's circle (the detector's error), overlapping it by a third
+    whole = _line((20.0, -30.0), (20.0, 10.0), 0.7)
+    piece = _line((20.3, 0.0), (20.3, 25.0), 0.5)
+    aside = _line((-40.0, 20.0), (-40.0, -20.0), 0.7)  # another edge, left as it is
+    choice = choose_structure([whole, piece, aside], (0.0, 90.0))
+    assert len(choice.kept) == 2 and "(the same edge)" in choice.dropped[0][1] and choice.dropped[0][1].kind == "beside a kept line"
+    kept = next(s for s in choice.kept if abs(s.start[0] - 20.0) < 1.0)
+    assert kept.start == pytest.approx((20.0, -30.0), abs=1e-9)  # its own start, and its circle: lon 20°
+    assert kept.end == pytest.approx((20.0, 25.0), abs=0.05) and kept.length == pytest.approx(55.0, abs=0.05)
+    assert next(s for s in choice.kept if s is not kept).start == aside.start
+    # a piece along a circle 0.9° away is another line beside it: dropped, and the kept one not lengthened
+    beside = _line((20.9, 0.0), (20.9, 25.0), 0.5)
+    choice = choose_structure([whole, beside], (0.0, 90.0))
+    assert len(choice.kept) == 1 and choice.kept[0].end == whole.end
 
 
 def test_a_line_overshooting_a_kept_one_is_cut_to_touch_it():

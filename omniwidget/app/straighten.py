@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from .._blas import one_blas_thread
 from ..detect.lines import DETECT_WIDTH, Suggestion, suggest_lines, suggestions_to_handles
+from ..detect.structure import Reason
 from ..document.handles import Handles, Options
 from ..errors import LevelError
 
@@ -42,6 +43,10 @@ __all__ = ["KIND_RGB", "MAX_LINES", "Structure", "Straightened", "find_structure
 
 #: Most lines :func:`straighten` rectifies (the best of the consistent set).
 MAX_LINES = 40
+#: The kinds of :class:`~omniwidget.detect.structure.Reason` this module gives, besides those of the structure's choice.
+OVER_A_POLE = "over a pole"
+CROSSING_IN_OUTPUT = "crossing in the output"
+GAVE_WAY = "gave way in the warp"
 #: The colours :meth:`Straightened.pictures` draws the lines of each kind in (RGB): verticals cyan, horizontals amber, others magenta.
 KIND_RGB: dict[str, tuple[int, int, int]] = {"vertical": (40, 220, 255), "horizontal": (255, 190, 30), "other": (235, 60, 200)}
 
@@ -59,8 +64,8 @@ class Structure:
         The levelling found, or None when the panorama could not be levelled (``notes`` says why).
     used : tuple of Suggestion
         The lines rectified, in the order of the handles, each with its kind.
-    dropped : tuple of (Suggestion, str)
-        Every other line found, with the reason it was left out.
+    dropped : tuple of (Suggestion, Reason)
+        Every other line found, with the reason it was left out (its words, and its kind).
     notes : tuple of str
         What else a person should know (not levelled, and why).
     """
@@ -68,7 +73,7 @@ class Structure:
     handles: Handles
     level: Level | None
     used: tuple[Suggestion, ...]
-    dropped: tuple[tuple[Suggestion, str], ...]
+    dropped: tuple[tuple[Suggestion, Reason], ...]
     notes: tuple[str, ...] = ()
 
     def summary(self) -> str:
@@ -82,7 +87,7 @@ class Structure:
         used = f"{len(self.used)} line{'s' * (len(self.used) != 1)} straightened" + (f" ({by_kind})" if by_kind else "")
         if not self.dropped:
             return f"{head}; {used}"
-        reasons = Counter(_reason_kind(why) for _, why in self.dropped)
+        reasons = Counter(why.kind for _, why in self.dropped)
         left = ", ".join(f"{n} {why}" for why, n in reasons.most_common())
         return f"{head}; {used}; {len(self.dropped)} left out ({left})"
 
@@ -150,26 +155,6 @@ class Straightened:
         return before, after
 
 
-def _reason_kind(why: str) -> str:
-    """A short name for a reason of :attr:`Structure.dropped`, for the summary's counts."""
-    for key, name in (  # the reasons of detect.structure.choose_structure and of this module
-        ("gave way", "gave way in the warp"),
-        ("pole", "over a pole"),
-        ("in the output", "crossing in the output"),
-        ("crossed by", "texture"),
-        ("cross", "crossing a kept line"),
-        ("texture", "texture"),
-        ("same surface on both sides", "texture"),
-        ("parallel lines", "texture"),
-        ("within", "beside a kept line"),
-        ("kind 'other' and shorter", "short and neither vertical nor horizontal"),
-        ("beyond the first", "beyond the first ones kept"),
-    ):
-        if key in why:
-            return name
-    return "other"
-
-
 @one_blas_thread
 def find_structure(image: NDArray[Any], *, max_lines: int | None = MAX_LINES, level: bool = True) -> Structure:
     """Level a panorama and choose the structural lines to rectify (steps 1 and 2 of :func:`straighten`).
@@ -226,17 +211,20 @@ def _uncrossed(found: Structure, rounds: int = 3) -> Structure:
 
     for _ in range(rounds):
         constraints = build_constraints(levelled_handles(found.handles), upright=found.handles.options.up is not None)
-        reasons = {h: f"passes {90 - abs(lat):.0f}° from the {'north' if lat > 0 else 'south'} pole: it cannot be straight" for h, lat in constraints.near_pole}
+        reasons = {
+            h: Reason(f"passes {90 - abs(lat):.0f}° from the {'north' if lat > 0 else 'south'} pole: it cannot be straight", OVER_A_POLE)
+            for h, lat in constraints.near_pole
+        }
         for a, b in crossing_handles(constraints):  # best first: a line crossing one already left out stays
             if a not in reasons and b not in reasons:
-                reasons[b] = f"crosses straightened line {a + 1} in the output"
+                reasons[b] = Reason(f"crosses straightened line {a + 1} in the output", CROSSING_IN_OUTPUT)
         if not reasons:
             break
         found = _without(found, reasons)
     return found
 
 
-def _without(found: Structure, reasons: dict[int, str]) -> Structure:
+def _without(found: Structure, reasons: dict[int, Reason]) -> Structure:
     """The structure with the used lines of the given indices left out, each with its reason."""
     used = tuple(s for i, s in enumerate(found.used) if i not in reasons)
     dropped = found.dropped + tuple((found.used[i], why) for i, why in sorted(reasons.items()))
@@ -294,7 +282,7 @@ def straighten(
     found = structure if structure is not None else find_structure(image, max_lines=max_lines, level=level)
     result = warp(image, found.handles, width=width, warn=False)
     if result.gave_way:  # where the blend folded beyond untangling: those lines are not straight there
-        found = _without(found, dict.fromkeys(result.gave_way, "gave way in the warp, where the blend folded beyond untangling"))
+        found = _without(found, dict.fromkeys(result.gave_way, Reason("gave way in the warp, where the blend folded beyond untangling", GAVE_WAY)))
         result = warp(image, found.handles, width=width, warn=False, previous=result)
     return Straightened(result, found)
 

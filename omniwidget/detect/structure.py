@@ -60,6 +60,8 @@ __all__ = [
     "FAMILY_SIZE",
     "FAMILY_SPACING",
     "KIND_TOLERANCE",
+    "Reason",
+    "MERGE_DISTANCE",
     "OTHER_MIN_LENGTH",
     "OTHER_WEIGHT",
     "StructureChoice",
@@ -126,8 +128,38 @@ CLOSE_DISTANCE = 2.5
 CLOSE_SHARE = 0.3
 #: Degrees: a line this close to a kept one (the median over where they are near) is the same edge found again.
 SAME_EDGE = 1.2
+#: Degrees: a line dropped as the same edge as a kept one and lying this close to the kept line's circle (median of its
+#: samples; none farther than :data:`SAME_EDGE`) is a piece of it: the kept line is lengthened over it.
+MERGE_DISTANCE = 0.5
 #: Points sampled along each line for :data:`CLOSE_SHARE`.
 CLOSE_SAMPLES = 12
+
+
+class Reason(str):
+    """Why a suggestion was left out: the words (the string itself) and :attr:`kind`, what a count of reasons groups by.
+
+    A ``str`` so that the reason reads, prints and compares as its words; the kind is data,
+    never found again in the words.
+    """
+
+    kind: str
+
+    def __new__(cls, words: str, kind: str) -> Reason:
+        """The reason ``words``, of kind ``kind``."""
+        made = super().__new__(cls, words)
+        made.kind = kind
+        return made
+
+    def __getnewargs__(self) -> tuple[str, str]:  # type: ignore[override]  # str's takes one argument
+        return str(self), self.kind
+
+
+#: The kinds of :class:`Reason` :func:`choose_structure` gives.
+TEXTURE = "texture"
+CROSSING = "crossing a kept line"
+BESIDE = "beside a kept line"
+SHORT_OTHER = "short and neither vertical nor horizontal"
+BEYOND = "beyond the first ones kept"
 
 
 @dataclass(frozen=True)
@@ -141,9 +173,9 @@ class StructureChoice:
         no two cross, none runs close beside another. Their confidence is their rank: the
         detector's confidence, a kind "other" line's scaled by :data:`OTHER_WEIGHT`, and
         (with the image) by how different its two sides look (:data:`SIDE_WEIGHT`).
-    dropped : tuple of (Suggestion, str)
+    dropped : tuple of (Suggestion, Reason)
         Every other suggestion with the reason it was left, in words ("crosses suggested
-        line 3", ...; line numbers count the kept lines from 1).
+        line 3", ...; line numbers count the kept lines from 1), and its kind.
     up : (float, float)
         ``[lon, lat]`` degrees of the true vertical the kinds were judged against.
     up_found : bool
@@ -155,7 +187,7 @@ class StructureChoice:
     """
 
     kept: tuple[Suggestion, ...]
-    dropped: tuple[tuple[Suggestion, str], ...]
+    dropped: tuple[tuple[Suggestion, Reason], ...]
     up: LonLat
     up_found: bool
     horizontals: tuple[LonLat, ...] = ()
@@ -211,7 +243,11 @@ class _Arcs:
     def of(cls, suggestions: Sequence[Suggestion]) -> _Arcs:
         lonlat = np.array([(s.start, s.end) for s in suggestions], dtype=np.float64).reshape(-1, 2, 2)
         xyz = coords.lonlat_to_xyz(lonlat)
-        a, b = xyz[:, 0], xyz[:, 1]
+        return cls.between(xyz[:, 0], xyz[:, 1])
+
+    @classmethod
+    def between(cls, a: FloatArray, b: FloatArray) -> _Arcs:
+        """The arcs from unit vectors ``a`` to ``b``, (k, 3) each."""
         normal = np.cross(a, b)
         size = np.linalg.norm(normal, axis=1)
         normal = normal / np.maximum(size, 1e-300)[:, None]
@@ -652,23 +688,27 @@ def choose_structure(
     t = np.linspace(0.0, 1.0, CLOSE_SAMPLES)[None, :] * arcs.length[:, None]
     samples = np.cos(t)[..., None] * arcs.start[:, None, :] + np.sin(t)[..., None] * arcs.along[:, None, :]
     kept: list[int] = []
-    dropped: list[tuple[int, str]] = []
+    dropped: list[tuple[int, Reason]] = []
+    pieces: dict[int, list[int]] = {}  # kept line -> lines dropped as the same edge
     for i in order.tolist():
         if texture[i]:
-            dropped.append((i, texture_reason[i]))
+            dropped.append((i, Reason(texture_reason[i], TEXTURE)))
             continue
         if kinds[i] == "other" and length[i] < OTHER_MIN_LENGTH:
-            dropped.append((i, f"kind 'other' and shorter than {OTHER_MIN_LENGTH:g}°"))
+            dropped.append((i, Reason(f"kind 'other' and shorter than {OTHER_MIN_LENGTH:g}°", SHORT_OTHER)))
             continue
         if max_lines is not None and len(kept) >= max_lines:
-            dropped.append((i, f"beyond the first {max_lines} kept"))
+            dropped.append((i, Reason(f"beyond the first {max_lines} kept", BEYOND)))
             continue
-        reason = _conflict(arcs, junction.crossing, samples, kept, i)
+        reason, near = _conflict(arcs, junction.crossing, samples, kept, i)
         if reason:
             dropped.append((i, reason))
+            if near is not None:
+                pieces.setdefault(near, []).append(i)
             continue
         kept.append(i)
-    ends = _trim(arcs, kept, junction.depth)
+    longer, depth = _lengthened(arcs, kept, pieces, junction.depth)
+    ends = _trim(longer, kept, depth)
     chosen = []
     for n, i in enumerate(kept):
         a, b = ends[n]
@@ -699,14 +739,17 @@ def choose_structure(
     )
 
 
-def _conflict(arcs: _Arcs, crossing: NDArray[np.bool_], samples: FloatArray, kept: list[int], i: int) -> str:
-    """Why line ``i`` cannot join the kept lines, or an empty string (``samples``: (k, CLOSE_SAMPLES, 3) along every arc)."""
+def _conflict(arcs: _Arcs, crossing: NDArray[np.bool_], samples: FloatArray, kept: list[int], i: int) -> tuple[Reason | None, int | None]:
+    """Why line ``i`` cannot join the kept lines, or None; and the kept line it is the same edge as, if it is.
+
+    ``samples``: (k, CLOSE_SAMPLES, 3) along every arc.
+    """
     if not kept:
-        return ""
+        return None, None
     others = np.array(kept, dtype=np.intp)
     crosses = np.flatnonzero(crossing[i, others])
     if crosses.size:
-        return f"crosses suggested line {int(crosses[0]) + 1}"
+        return Reason(f"crosses suggested line {int(crosses[0]) + 1}", CROSSING), None
     # each line's samples near the other, both ways: the same edge, or neighbours fighting for the pixels
     sub = _Arcs(arcs.start[others], arcs.end[others], arcs.normal[others], arcs.along[others], arcs.length[others])
     mine = sub.distance(samples[i])  # (samples, kept)
@@ -716,11 +759,54 @@ def _conflict(arcs: _Arcs, crossing: NDArray[np.bool_], samples: FloatArray, kep
     both = np.maximum(share, theirs)
     n = int(np.argmax(both))
     if both[n] <= CLOSE_SHARE:
-        return ""
+        return None, None
     near = mine[:, n][mine[:, n] < CLOSE_DISTANCE]
     apart = float(np.median(near)) if near.size else CLOSE_DISTANCE
     what = "the same edge" if apart < SAME_EDGE else "they would fight for the same pixels"
-    return f"within {max(apart, 0.05):.1f}° of suggested line {n + 1} along {both[n]:.0%} of its length ({what})"
+    reason = Reason(f"within {max(apart, 0.05):.1f}° of suggested line {n + 1} along {both[n]:.0%} of its length ({what})", BESIDE)
+    return reason, (int(others[n]) if apart < SAME_EDGE else None)
+
+
+def _lengthened(arcs: _Arcs, kept: list[int], pieces: dict[int, list[int]], depth: FloatArray) -> tuple[_Arcs, FloatArray]:
+    """The arcs with each kept one lengthened over the pieces of the same edge dropped beside it, and their crossing depths.
+
+    An edge the detector found in pieces (broken by a corner's shading, or one piece just
+    outside the kind's tolerance) is kept once; its other pieces that lie along its circle
+    (:data:`MERGE_DISTANCE`) extend it, so that the whole edge is straightened. A
+    lengthening that would cross another kept line inside both (:data:`CROSS_MARGIN`) is
+    not made. ``depth`` is :attr:`Junctions.depth`, returned as it is when nothing changed.
+    """
+    start, end = arcs.start.copy(), arcs.end.copy()
+    for n, near in pieces.items():
+        t = np.concatenate([_along_circle(arcs, n, arcs.samples(i, CLOSE_SAMPLES)) for i in near])
+        if t.size == 0:
+            continue
+        low, high = min(0.0, float(t.min())), max(float(arcs.length[n]), float(t.max()))
+        if high - low >= np.pi or (low == 0.0 and high == float(arcs.length[n])):
+            continue
+        start[n] = math.cos(low) * arcs.start[n] + math.sin(low) * arcs.along[n]
+        end[n] = math.cos(high) * arcs.start[n] + math.sin(high) * arcs.along[n]
+    changed = np.flatnonzero(np.any((start != arcs.start) | (end != arcs.end), axis=1))
+    if changed.size == 0:
+        return arcs, depth
+    longer = _Arcs.between(start, end)
+    crossing, new_depth = _crossings(longer, math.radians(CROSS_MARGIN))
+    others = np.array(kept, dtype=np.intp)
+    for n in changed.tolist():
+        if crossing[n, others].any():  # undo: it would cross a kept line
+            start[n], end[n] = arcs.start[n], arcs.end[n]
+    if np.array_equal(start, arcs.start) and np.array_equal(end, arcs.end):
+        return arcs, depth
+    longer = _Arcs.between(start, end)
+    return longer, _crossings(longer, math.radians(CROSS_MARGIN))[1]
+
+
+def _along_circle(arcs: _Arcs, n: int, points: FloatArray) -> FloatArray:
+    """Angles (radians) along arc ``n``'s circle from its start of those ``points`` of a piece that lie along it; empty if they do not."""
+    off = np.degrees(np.arcsin(np.clip(np.abs(points @ arcs.normal[n]), 0.0, 1.0)))
+    if float(np.median(off)) >= MERGE_DISTANCE or float(off.max()) >= SAME_EDGE:
+        return np.zeros(0)
+    return np.asarray(np.arctan2(points @ arcs.along[n], points @ arcs.start[n]))
 
 
 def _trim(arcs: _Arcs, kept: list[int], depth: FloatArray) -> list[tuple[FloatArray, FloatArray]]:
