@@ -38,7 +38,7 @@ def _warp(image, handles):
         return warp(image, handles)
 
 
-#: Every line at its constrained samples as straight as its own map makes it (README): the excess measured below
+#: Every line at its constrained samples as straight as its own map makes it (bench/RESULTS.md): the excess measured below
 #: 2e-13 px at 2048 (7e-14 at 1024); rounding level, 1e-11 px at any width.
 LINE_EXCESS_PX = 1e-11
 
@@ -87,7 +87,7 @@ def _check_still_background(seed: int, n: int, width: int) -> None:
     # 0.38-0.52 on these rooms: every line is now cut into pieces until it is straight (their own single
     # maps left them up to 1.25 px from straight), which costs room 3 0.02 (it was 0.496 before the cut)
     assert ours.distortion_p99 <= 0.53
-    # far from every line nothing moves at all (README: "0" is below 1e-13° moved, 1e-12 distortion; measured
+    # far from every line nothing moves at all (bench/RESULTS.md: "0" is below 1e-13° moved, 1e-12 distortion; measured
     # 3.5e-15 to 3.8e-15° and 1.1e-13); the paper's method swings it
     assert ours.far.share > 0.2 and ours.far.fold_over == 0
     assert ours.far.displacement < 1e-13 and ours.far.distortion_p99 < 1e-12, ours.far
@@ -145,7 +145,7 @@ def _check_cages_and_points(width: int) -> None:
     handles = (*(LineHandle(line.start, line.end) for line in lines[:4]), cage, point)
     still = _warp(scene.image, Handles(handles, Options(anchor=SUGGESTED_ANCHOR)))
     moved = cage_motion(still.inverse_map(np.float64), cage.vertices)
-    assert moved < 1e-12 * width / W, f"{moved:.2e} px"  # README: < 1e-12 px (at 2048); measured 3.6e-13 px
+    assert moved < 1e-12 * width / W, f"{moved:.2e} px"  # bench/RESULTS.md: < 1e-12 px (at 2048); measured 3.6e-13 px
     control = next(c for c, k in enumerate(still.controls) if k.handle == len(handles) - 1)
     landed = still.forward_points(np.array([point.position]), control)[0]
     from omniwidget.sphere import coords
@@ -227,7 +227,7 @@ def test_the_eased_background_keeps_every_boundary_condition():
     assert np.allclose(eased.sum(axis=1), 1) and eased.min() >= 0
     assert np.array_equal(eased[:5], weights[:5])
     share, eased_share = 1 - weights[5:, -1], 1 - eased[5:, -1]
-    assert np.allclose(eased_share, share**3)  # the README's cube, written out: not the constant
+    assert np.allclose(eased_share, share**3)  # the documented cube, written out: not the constant
     np.testing.assert_allclose(eased[5:, :-1] / eased_share[:, None], weights[5:, :-1] / share[:, None])  # the handles' mix kept
     np.testing.assert_allclose(ease_background(weights, 1.0), weights, rtol=0, atol=1e-15)
     with pytest.raises(ValueError, match="at least 1"):
@@ -236,7 +236,7 @@ def test_the_eased_background_keeps_every_boundary_condition():
 
 def test_the_background_eases_by_the_cube_worked_by_hand():
     """The numbers the eased formula must give, by hand: the handles' share s becomes s**3 (BACKGROUND_EASE = 3,
-    README), split among them as before; the background takes the rest."""
+    docs/default-mode.md), split among them as before; the background takes the rest."""
     rows = np.array([[0.3, 0.2, 0.5], [0.1, 0.0, 0.9], [0.6, 0.4, 0.0], [0.0, 0.0, 1.0]])
     # s = 0.5 -> 0.125 = 0.6 * 0.125 + 0.4 * 0.125; s = 0.1 -> 0.001; s = 1 and s = 0 stay
     by_hand = np.array([[0.075, 0.05, 0.875], [0.001, 0.0, 0.999], [0.6, 0.4, 0.0], [0.0, 0.0, 1.0]])

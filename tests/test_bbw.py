@@ -23,7 +23,7 @@ from tests import requires
 
 #: Our weights against ``igl.bbw`` (libigl stops after 100 iterations; it converges well before on these
 #: meshes). Measured 6.3e-14 (icosphere3, lines) to 1.3e-10 (hull700, cage: the worst conditioned), 1.1e-12
-#: on the three-level icosphere4; the bound is 8x the worst. The README's "to 1e-10" is the pipeline's
+#: on the three-level icosphere4; the bound is 8x the worst. bench/RESULTS.md's "to 1e-10" is the pipeline's
 #: mesh (tests/test_blend.py, 6e-15 there); a solver bug shows at 1e-4 or more.
 IGL_TOL = 1e-9
 

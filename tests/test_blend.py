@@ -20,7 +20,7 @@ from tests import requires
 W = 2048
 
 
-#: README ("Measured"): a fixed cage's inside moves by less than 1e-12 px. Measured 3.6e-13 px at 2048 on
+#: bench/RESULTS.md ("Speed and accuracy"): a fixed cage's inside moves by less than 1e-12 px. Measured 3.6e-13 px at 2048 on
 #: both rooms below (rounding in the inverse map); a cage that leaked would move it by pixels.
 FIXED_CAGE_PX = 1e-12
 
@@ -56,7 +56,7 @@ def _check_weights(result, atol: float = 1e-9) -> None:
         assert len(own) >= len(samples) - 2 and np.all(result.prescribed[own].sum(axis=1) == 1)
 
 
-#: How much less straight the blend leaves a line at its constrained samples than its own map does, px: the README
+#: How much less straight the blend leaves a line at its constrained samples than its own map does, px: bench/RESULTS.md
 #: says "as straight as its own map makes it", measured 2e-13 px (7e-14 at 1024). Rounding level: 1e-11 px at any width.
 LINE_EXCESS_PX = 1e-11
 
@@ -174,7 +174,7 @@ def _check_weights_match_libigl(width: int) -> None:
     scene, lines = _room_scene(1, 6, KEEP_CLEAR, width)
     result = warp(scene.image, _lines_doc(lines, CageHandle(CAGE), POINT))
     reference = normalize_rows(igl_bbw(result.vertices, result.faces, result.constrained, result.prescribed))
-    # README: "the weights agree to 1e-10"; measured 6.4e-15 on this mesh (both before and after the ease)
+    # bench/RESULTS.md: "the weights agree to 1e-10"; measured 6.4e-15 on this mesh (both before and after the ease)
     raw = np.abs(normalize_rows(result.raw_weights) - reference).max()
     eased = with_reach(result.handles, solved(result.constraints), result.vertices, ease_background(reference))[1]
     used = np.abs(result.weights - eased).max()  # what the blend uses (a still background, the point's ladder)

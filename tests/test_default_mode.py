@@ -26,23 +26,23 @@ W = 2048
 T = np.linspace(0.0, 1.0, 50)
 PIECE_T = np.linspace(0.0, 1.0, 200)
 
-#: The issue's figures are 0.25 px, 1% and 0.1° for points and 0.5 px for cages and lines; the README states
+#: The issue's figures are 0.25 px, 1% and 0.1° for points and 0.5 px for cages and lines; bench/RESULTS.md states
 #: what is measured, and these bounds hold that (at 2048 on the report half's scenes below):
 #: points are exact: centre within 5e-13 px, zoom 5e-15, turn 1.2e-13° measured; bounds 20x, 20x, 9x.
 POINT_EXACT = {"centre_px": 1e-11, "zoom": 1e-13, "rotation": 1e-12}
 #: cages carry or hold their inside exactly on these scenes: 2.1e-13 to 9.4e-13 px measured; bound 10x.
-#: (The report half's worst at 1024, in the README, is 0.08 px, on a scene not run here.)
+#: (The report half's worst at 1024, in bench/RESULTS.md, is 0.08 px, on a scene not run here.)
 CAGE_EXACT_PX = 1e-11
 #: lines, measured densely along their whole arcs through the map that placed the pixels (Result.quality): the
 #: report half's worst is 0.28 px at 1024 (bench/RESULTS.md, "Never fold": long 0.28, short 0.19, mixed 0.18; the
-#: README: "about 0.1-0.25 px"); up to 0.251 px at 2048 on the scenes below. The figure does not shrink with the
+#: bench/RESULTS.md: "about 0.1-0.25 px"); up to 0.251 px at 2048 on the scenes below. The figure does not shrink with the
 #: pixel's angle: most of it is the map's interpolation between pixel centres across the line, where the weights
 #: fall fast. Bound 0.30 px at 2048 (1.2x the 0.251 measured, 1.07x the report half's worst); the fast twin at 512
 #: measures up to 0.138 px (long 1; short 1: 0.102) and is bound at 1.2x that, LINE_PX_512.
 LINE_PX = 0.30
 LINE_PX_512 = 0.165
 #: lines at their constrained samples, where the weights are 1: each piece's own map along its part of the line
-#: (the README: "every line within 0.05 px of straight at its constrained samples", at 1024; the report half's
+#: (bench/RESULTS.md: "every line within 0.05 px of straight at its constrained samples", at 1024; the report half's
 #: worst is 0.053 px, long 5, and 0.054 on room_edges). Bound 0.055 px at 1024, the claim at rounding level,
 #: scaled to the width (the figure is an angle: 0.0405 px for long 1 at 1024, 0.0202 at 512). Pieces cut to
 #: LINE_TOLERANCE 0.027° instead of 0.02 give 0.061 px for long 1 at 1024 (0.0306 at 512): caught.
@@ -217,7 +217,7 @@ def test_a_long_line_is_cut_into_pieces_on_one_straight_segment():
     for (_, q, a), (p, _, b) in zip(pieces, pieces[1:], strict=False):
         assert np.allclose(q, p) and coords.angular_distance(a(q), b(p)) < 1e-9
     curve = np.concatenate([m_(coords.geodesic(p, q, np.linspace(0, 1, 100))) for p, q, m_ in pieces])
-    # the README's figure, not the constant: within 0.02° of the segment (0.114 px at 2048); measured 0.0507 px, bound 1.2x
+    # bench/RESULTS.md's figure, not the constant: within 0.02° of the segment (0.114 px at 2048); measured 0.0507 px, bound 1.2x
     assert straightness(curve, W) <= min(0.02 * W / 360, 0.061)
     # a short line is left whole
     assert len(split_line(LineHandle((0.0, 5.0), (10.0, 6.0)).moebius(), (0.0, 5.0), (10.0, 6.0))) == 1
@@ -316,7 +316,7 @@ def test_a_held_out_scene_of_each_family_meets_the_figures_at_512(family):
 @pytest.mark.parametrize("family", sorted(REPORT_WORST))
 def test_the_backgrounds_figures_on_report_scenes_are_within_the_readmes_worst(family):
     """Part 4 (the background's distortion), held out: seeds 1, 3, 5 and 7 of the report half at 1024 (as
-    ``python bench/bench_default.py --width 1024``), each within the README's worst for its family plus 10%
+    ``python bench/bench_default.py --width 1024``), each within bench/RESULTS.md's worst for its family plus 10%
     (rounding: the table shows two or three digits). Measured e.g. short 3: mean 0.043, moved 0.105°; long 7:
     folds 0.52%, mean 3.51; cage_large 7: p99 0.79, moved 0.51°; points 7: p99 0.71. 2-5 s a scene."""
     fold, mean, p99, moved = REPORT_WORST[family]

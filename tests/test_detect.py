@@ -433,7 +433,7 @@ def test_levelling_the_sample_twice_leaves_it_level():
     assert level(levelled).tilt < 0.2
 
 
-#: The tilts the README quotes for the CC0 panoramas (degrees; measured 0.134, 0.218, 1.177, 0.095).
+#: The tilts bench/RESULTS.md quotes for the CC0 panoramas (degrees; measured 0.134, 0.218, 1.177, 0.095).
 CC0_TILTS = {"hotel_room": 0.13, "studio_office": 0.22, "courtyard": 1.18, "city_parking": 0.09}
 
 
@@ -473,7 +473,7 @@ def test_a_panorama_wider_than_the_detect_width_is_looked_at_reduced_to_it():
 
 @pytest.mark.slow
 def test_twenty_held_out_rooms_each_for_suggestions_and_tilt():
-    """The figures reported (README), on 20 rooms each: seeds 100-119 for the lines, 200-219 for the tilt.
+    """The figures reported (bench/RESULTS.md), on 20 rooms each: seeds 100-119 for the lines, 200-219 for the tilt.
 
     Measured: precision 0.936, recall 0.872 (the worst room 0.882 and 0.750), endpoints
     within 1° for 85.8% of the 709 lines found whole (median 0.21°); tilt error at most

@@ -196,7 +196,7 @@ def test_a_cage_in_the_doc_is_still_held_when_rectifying_all(room):
     doc = Handles((TOP, *SIDES, cage))
     result, _ = _warp(room.image, doc)
     inside = np.stack(np.meshgrid(np.linspace(-146, -124, 8), np.linspace(-16, 6, 8)), axis=-1).reshape(-1, 2)
-    # README: a fixed cage's inside moves by less than 1e-12 px; measured 2.3e-13 px here (3.6e-13 by cage_motion)
+    # bench/RESULTS.md: a fixed cage's inside moves by less than 1e-12 px; measured 2.3e-13 px here (3.6e-13 by cage_motion)
     moved = coords.angular_distance(result.inverse_points(inside), inside).max() * W / 360
     assert moved < 1e-12, f"{moved:.2e} px"
     assert cage_motion(result.inverse_map(np.float64), cage.vertices) < 1e-12

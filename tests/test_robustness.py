@@ -289,9 +289,9 @@ def test_fuzzed_broken_documents_are_refused_naming_the_handle_and_field(case):
 # --- odd geometry ----------------------------------------------------------------------------
 GEO_W = 512
 FOLD_WARNING = "folds over"
-#: README (Odd geometry): fixed cages hold still, < 1e-12 px; measured 3.0e-14 to 8.3e-14 px at 512.
+#: bench/RESULTS.md (Reliability): fixed cages hold still, < 1e-12 px; measured 3.0e-14 to 8.3e-14 px at 512.
 FIXED_CAGE_PX = 1e-12
-#: README (Odd geometry): lines that cross, touch, overlap or repeat, and a 179° line, come out straight,
+#: bench/RESULTS.md (Reliability): lines that cross, touch, overlap or repeat, and a 179° line, come out straight,
 #: measured densely along their whole arcs (``Result.quality``): the worst line at 512 in the default mode
 #: measured 0.096-0.27 px (at the constrained samples alone it was 0.004-0.020; 0.27 the second of two lines on one
 #: great circle, overlapping, with the lines' ends held), in the paper's 0.038-0.100 px at the
@@ -299,7 +299,7 @@ FIXED_CAGE_PX = 1e-12
 STRAIGHT_PX = {"default": 0.35, "paper": 0.2}
 
 
-#: Each odd geometry's quality figures, written to test-artifacts/odd_geometry.json (for the README).
+#: Each odd geometry's quality figures, written to test-artifacts/odd_geometry.json (for bench/RESULTS.md).
 FIGURES: dict[str, dict] = {}
 
 
@@ -408,7 +408,7 @@ def test_a_cage_across_the_seam_and_one_around_a_pole_hold_still(room):
     inverse = result.inverse_map(np.float64)
     from omniwidget.evaluate.quality import cage_motion
 
-    # README: they hold still (< 1e-12 px); measured 4.4e-14 (seam) and 8.3e-14 px (pole) at 512
+    # bench/RESULTS.md: they hold still (< 1e-12 px); measured 4.4e-14 (seam) and 8.3e-14 px (pole) at 512
     moved = cage_motion(inverse, seam), cage_motion(inverse, pole)
     assert max(moved) < FIXED_CAGE_PX, moved
     # nothing happens at the seam: the first and last columns are as alike as any two neighbours
@@ -474,7 +474,7 @@ def test_lines_that_cross_touch_overlap_or_repeat_come_out_straight(room, second
         arc = geodesic(first[0], first[1], np.array([0.25, 1.3]))
         doc["handles"][1] = _line(arc[0], arc[1])
     result, figures = _warp(room, doc)
-    # straightness as the README states it: every line's output, its largest distance from its best straight
+    # straightness as bench/RESULTS.md states it: every line's output, its largest distance from its best straight
     # fit (Result.quality, omniwidget.evaluate.quality), worst over the lines
     assert len(figures.lines) >= 3 and all(np.isfinite(v) for v in figures.lines), figures.lines
     assert figures.straightness <= STRAIGHT_PX[mode], (what, mode, figures.lines)

@@ -49,13 +49,13 @@ def _sampled_and_source_error(fast, exact) -> tuple[np.ndarray, np.ndarray]:
     return sampled, error
 
 
-#: README (Measured): the sampled blend's sources within 0.4 px of the exact map's, 0.18 px at the 99.9th
+#: bench/RESULTS.md (Speed and accuracy): the sampled blend's sources within 0.4 px of the exact map's, 0.18 px at the 99.9th
 #: percentile. Measured on the room below: max 0.29 px, p99.9 0.14 px (paper's mode); max 0.31 px, p99.9
 #: 0.12 px (default). By design the interpolation is kept where it is within a quarter of a pixel, so these
 #: bounds are the claim itself (1.3x the measured), not a multiple of it.
 SOURCE_MAX_PX, SOURCE_P999_PX = 0.4, 0.18
 #: A line's samples found through the sampled map and through the exact one: apart, and in straightness, by at most
-#: this (px). README: "the lines and cages exactly as the exact map makes them"; float32 coordinates resolve 2.4e-4 px.
+#: this (px). bench/RESULTS.md: "the lines and cages exactly as the exact map makes them"; float32 coordinates resolve 2.4e-4 px.
 LINE_FOUND_PX = 1e-3
 
 
