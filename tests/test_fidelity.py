@@ -319,63 +319,78 @@ def test_families_make_the_scenes_they_promise(family, quarter):
         cages = [doc.handles[i] for i in truth["cage_handles"]]
         points = [doc.handles[i] for i in truth["point_handles"]]
         assert kinds == ["line"] * len(lines) + ["cage"] * len(cages) + ["point"] * len(points)
-        lengths = {"short": (15, 50), "long": (50, 150), "cage_small": (15, 40), "cage_large": (15, 40)}.get(family, (15, 50))
-        counts = {"short": (4, 8), "long": (3, 5), "cage_small": (0, 2), "cage_large": (0, 2), "cage_fixed": (2, 4), "points": (0, 3)}
-        lo, hi = counts.get(family, (3, 5))
-        assert lo <= len(lines) <= hi, (family, seed)
-        for handle, marked, parent in zip(lines, truth["lines"], truth["parents"], strict=True):
-            assert (handle.start, handle.end) == (marked.start, marked.end)
-            assert lengths[0] - 1e-6 <= marked.length <= lengths[1] + 1e-6
-            assert marked.max_abs_lat <= 65.0 + 1e-9
-            assert parent in scene.lines and parent.length >= marked.length - 1e-9
-            # the piece lies on its parent's arc
-            n = np.cross(*coords.lonlat_to_xyz([parent.start, parent.end]))
-            assert np.abs(coords.lonlat_to_xyz([marked.start, marked.end]) @ (n / np.linalg.norm(n))).max() < 1e-9
-        for i, a in enumerate(truth["lines"]):  # apart, except at a shared end
-            for b in truth["lines"][i + 1 :]:
-                if _min_distance(np.array([a.start, a.end]), np.array([b.start, b.end])) > 1e-4:  # (arccos: 1e-6 degrees)
-                    assert _min_distance(_line_cloud(a), _line_cloud(b)) >= 8.0 - 0.05, (family, seed)
+        _check_family_lines(family, seed, scene, lines, truth)
         assert len(cages) == (family.startswith("cage") or family == "mixed")
         for cage, r, convex, across in zip(cages, truth["rotations"], truth["convex"], truth["across"], strict=True):
-            vertices = np.array(cage.vertices)
-            sizes = {"cage_small": (10, 25), "cage_large": (30, 90), "cage_fixed": (10, 60), "mixed": (15, 40)}[family]
-            assert sizes[0] - 1e-6 <= across <= sizes[1] + 1e-6
-            assert across == pytest.approx(np.degrees(np.arccos(np.clip((lambda x: x @ x.T)(coords.lonlat_to_xyz(vertices)).min(), -1, 1))))
-            planar = _planar(vertices)
-            assert _is_simple(planar), (family, seed)  # the vertices go round the polygon in order
-            d = np.roll(planar, -1, 0) - planar
-            turns = d[:, 0] * np.roll(d, -1, 0)[:, 1] - d[:, 1] * np.roll(d, -1, 0)[:, 0]
-            assert convex == (np.all(turns > 0) or np.all(turns < 0))
-            if family in ("cage_small", "cage_large"):
-                assert convex == (seed % 2 == 0)
-            np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
-            np.testing.assert_allclose(coords.lonlat_to_xyz(cage.finals), coords.lonlat_to_xyz(vertices) @ r.T, atol=1e-12)
-            angle = math.degrees(math.acos(np.clip((np.trace(r) - 1) / 2, -1, 1)))
-            if family == "cage_fixed":
-                assert cage.targets is None and angle == 0
-            elif family != "mixed" or cage.targets is not None:
-                assert 2 - 1e-9 <= angle <= 8 + 1e-9
-            gap = {"cage_fixed": 5.0}.get(family, 10.0)
-            edges = np.concatenate([_edges(cage.vertices), _edges(cage.finals)])
-            for marked in truth["lines"]:
-                assert _min_distance(_line_cloud(marked), edges) >= gap - 0.05, (family, seed)
-                for polygon in (cage.vertices, cage.finals):
-                    assert not arcs.inside_polygon(_line_cloud(marked), polygon).any()
-            if family == "cage_fixed":
-                assert _min_distance(_line_cloud(truth["lines"][0]), edges) <= 15.0 + 0.05
-            for p in points:
-                for polygon in (cage.vertices, cage.finals):
-                    assert not arcs.inside_polygon(np.array([p.position, p.final]), polygon).any()
-                assert _min_distance(np.array([p.position, p.final]), edges) >= 10.0 - 0.05
-        assert (1 if family == "mixed" else 0) <= len(points) <= {"points": 3, "mixed": 2}.get(family, 0)
-        if family == "points":
-            assert len(points) >= 1
-        for p in points:
-            assert 0.6 <= p.scale <= 2.5 and -30 <= p.rotation <= 30
-            assert abs(p.position[1]) <= 60 and abs(p.final[1]) <= 60
-            assert float(coords.angular_distance(p.position, p.final)) <= 5.0 + 1e-9
-            for marked in truth["lines"]:
-                assert _min_distance(_line_cloud(marked), np.array([p.position, p.final])) >= (15.0 if family == "points" else 10.0) - 0.05
+            _check_family_cage(family, seed, cage, r, convex, across, truth["lines"], points)
+        _check_family_points(family, points, truth["lines"])
+
+
+def _check_family_lines(family, seed, scene, lines, truth):
+    """The family's marked lines: their count and length, each a piece of its parent's arc, apart except at a shared end."""
+    lengths = {"short": (15, 50), "long": (50, 150), "cage_small": (15, 40), "cage_large": (15, 40)}.get(family, (15, 50))
+    counts = {"short": (4, 8), "long": (3, 5), "cage_small": (0, 2), "cage_large": (0, 2), "cage_fixed": (2, 4), "points": (0, 3)}
+    lo, hi = counts.get(family, (3, 5))
+    assert lo <= len(lines) <= hi, (family, seed)
+    for handle, marked, parent in zip(lines, truth["lines"], truth["parents"], strict=True):
+        assert (handle.start, handle.end) == (marked.start, marked.end)
+        assert lengths[0] - 1e-6 <= marked.length <= lengths[1] + 1e-6
+        assert marked.max_abs_lat <= 65.0 + 1e-9
+        assert parent in scene.lines and parent.length >= marked.length - 1e-9
+        # the piece lies on its parent's arc
+        n = np.cross(*coords.lonlat_to_xyz([parent.start, parent.end]))
+        assert np.abs(coords.lonlat_to_xyz([marked.start, marked.end]) @ (n / np.linalg.norm(n))).max() < 1e-9
+    for i, a in enumerate(truth["lines"]):  # apart, except at a shared end
+        for b in truth["lines"][i + 1 :]:
+            if _min_distance(np.array([a.start, a.end]), np.array([b.start, b.end])) > 1e-4:  # (arccos: 1e-6 degrees)
+                assert _min_distance(_line_cloud(a), _line_cloud(b)) >= 8.0 - 0.05, (family, seed)
+
+
+def _check_family_cage(family, seed, cage, r, convex, across, marked_lines, points):
+    """One cage of the family: its size, a simple polygon in order, its turn, and clear of the lines and points."""
+    vertices = np.array(cage.vertices)
+    sizes = {"cage_small": (10, 25), "cage_large": (30, 90), "cage_fixed": (10, 60), "mixed": (15, 40)}[family]
+    assert sizes[0] - 1e-6 <= across <= sizes[1] + 1e-6
+    assert across == pytest.approx(np.degrees(np.arccos(np.clip((lambda x: x @ x.T)(coords.lonlat_to_xyz(vertices)).min(), -1, 1))))
+    planar = _planar(vertices)
+    assert _is_simple(planar), (family, seed)  # the vertices go round the polygon in order
+    d = np.roll(planar, -1, 0) - planar
+    turns = d[:, 0] * np.roll(d, -1, 0)[:, 1] - d[:, 1] * np.roll(d, -1, 0)[:, 0]
+    assert convex == (np.all(turns > 0) or np.all(turns < 0))
+    if family in ("cage_small", "cage_large"):
+        assert convex == (seed % 2 == 0)
+    np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(coords.lonlat_to_xyz(cage.finals), coords.lonlat_to_xyz(vertices) @ r.T, atol=1e-12)
+    angle = math.degrees(math.acos(np.clip((np.trace(r) - 1) / 2, -1, 1)))
+    if family == "cage_fixed":
+        assert cage.targets is None and angle == 0
+    elif family != "mixed" or cage.targets is not None:
+        assert 2 - 1e-9 <= angle <= 8 + 1e-9
+    gap = {"cage_fixed": 5.0}.get(family, 10.0)
+    edges = np.concatenate([_edges(cage.vertices), _edges(cage.finals)])
+    for marked in marked_lines:
+        assert _min_distance(_line_cloud(marked), edges) >= gap - 0.05, (family, seed)
+        for polygon in (cage.vertices, cage.finals):
+            assert not arcs.inside_polygon(_line_cloud(marked), polygon).any()
+    if family == "cage_fixed":
+        assert _min_distance(_line_cloud(marked_lines[0]), edges) <= 15.0 + 0.05
+    for p in points:
+        for polygon in (cage.vertices, cage.finals):
+            assert not arcs.inside_polygon(np.array([p.position, p.final]), polygon).any()
+        assert _min_distance(np.array([p.position, p.final]), edges) >= 10.0 - 0.05
+
+
+def _check_family_points(family, points, marked_lines):
+    """The family's point handles: their count, turn, zoom, latitude and reach, and clear of the lines."""
+    assert (1 if family == "mixed" else 0) <= len(points) <= {"points": 3, "mixed": 2}.get(family, 0)
+    if family == "points":
+        assert len(points) >= 1
+    for p in points:
+        assert 0.6 <= p.scale <= 2.5 and -30 <= p.rotation <= 30
+        assert abs(p.position[1]) <= 60 and abs(p.final[1]) <= 60
+        assert float(coords.angular_distance(p.position, p.final)) <= 5.0 + 1e-9
+        for marked in marked_lines:
+            assert _min_distance(_line_cloud(marked), np.array([p.position, p.final])) >= (15.0 if family == "points" else 10.0) - 0.05
 
 
 def test_families_are_reproducible_vary_with_the_seed_and_ignore_the_width():
