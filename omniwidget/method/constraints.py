@@ -12,9 +12,9 @@ blend of eq. (2) is an inverse map:
   ``samples`` times, the two end vertices' weights vary linearly;
 - every other control: weight 0 at all of these points.
 
-With the still background (``options.anchor``, the default; issue 17) a point also holds
+With the still background (``options.anchor``, the default) a point also holds
 its map on a small disk (:data:`POINT_HOLD`), a cage's vertex maps share the cage's best
-rotation (``CageHandle.vertex_maps(carry=True)``), a rectified line too long for one map is
+rotation (``CageHandle.vertex_maps(carry=True)``; each kind's part is in :mod:`.kinds`), a rectified line too long for one map is
 cut into pieces on one straight segment (:func:`split_line`), and a line over a pole is
 kept as it is (:data:`POLE_LATITUDE`). ``"anchor": null`` is the paper's method exactly.
 """
@@ -28,12 +28,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import whole_number
-from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
+from ..document.handles import Handles, LineHandle
 from ..sphere import coords
 from ..sphere.arcs import arc_crossing
 from ..sphere.moebius import Moebius
+from .kinds import POINT_HOLD, Control, Part, Rows, kind_of
 from .limits import check_samples, check_weights
-from .rectify import Anchor, Bone, RectifySolution, near_vertical, solve_bones
+from .rectify import Bone, RectifySolution, near_vertical, solve_bones
 
 __all__ = [
     "JOINT_DISTANCE",
@@ -53,12 +54,6 @@ SAMPLES = 50
 JOINT_DISTANCE = 360.0 / 150.0
 #: How close to an endpoint (degrees) a crossing may be and still split the lines.
 CROSSING_MARGIN = 1e-6
-#: With the still background a point handle's map holds exactly within this many degrees of
-#: its target (the disk's mesh vertices carry its weight 1), so the centre, the zoom and the
-#: turn the person set are what the image shows there.
-POINT_HOLD = 1.0
-#: Samples on the rim of a point handle's disk.
-RIM_SAMPLES = 12
 #: With the still background a rectified line whose map leaves it farther than this many
 #: degrees from its straight output segment (0.11 px at 2048 wide) is cut into pieces, each
 #: with its own map, until every piece lies that close (the paper's Fig. 14: one Möbius map
@@ -72,25 +67,6 @@ MAX_PIECES = 16
 #: pole can be straight in the panorama). Chosen where eq. (4) stops helping: the median
 #: latitude where it starts to fold and its distortion jumps (``bench/bench_pole_lines.py``).
 POLE_LATITUDE = 75.0
-
-
-@dataclass(frozen=True)
-class Control:
-    """One Möbius map of the blend and where it comes from.
-
-    Attributes
-    ----------
-    moebius : Moebius
-        Input sphere to output sphere.
-    handle : int
-        Index of the handle in the document.
-    label : str
-        Human-readable name, e.g. ``"handles[3] (line, part 2 of 2)"`` or ``"handles[5] (cage vertex 1)"``.
-    """
-
-    moebius: Moebius
-    handle: int
-    label: str
 
 
 @dataclass(frozen=True)
@@ -333,6 +309,15 @@ def build_constraints(
 ) -> Constraints:
     """The controls of a handles document and the boundary conditions of their weights.
 
+    The steps, in order: the lines cut at their crossings (Sec. 4), their ends joined, the
+    rectified ones placed together (Sec. 3.4), each line piece cut for its length; then
+    every handle adds its controls and prescribed weights through its kind
+    (:mod:`.kinds`), and the joints are shared among the lines that meet there. What the
+    still background changes (``options.anchor`` set) is decided by one flag, read here:
+    lines over a pole are kept as they are (:func:`_lines_cut_at_crossings`), long
+    rectified lines cut into pieces (:func:`_parts_by_line`), and the kinds hold points on
+    a disk and carry a cage's inside by its rotation (:class:`~.kinds.Rows`).
+
     Parameters
     ----------
     handles : Handles
@@ -351,108 +336,60 @@ def build_constraints(
     """
     samples = check_samples(whole_number(samples, "samples", 2))
     t = np.linspace(0.0, 1.0, samples)
-    controls: list[Control] = []
-    rows: list[tuple[NDArray[np.float64], dict[int, float]]] = []  # (point, {control: weight})
-    line_samples: list[tuple[int, NDArray[np.float64]]] = []
-
     background = handles.options.anchor is not None
+    near_pole = _near_pole(handles)
+    pieces = _lines_cut_at_crossings(handles, {i for i, _ in near_pole} if background else set())
+    # the weights' size known so far (a control and samples per piece), before the costlier steps
+    check_weights(len(pieces) * (samples - 1), len(pieces))
+    uprights = _uprights(pieces) if upright else set()
+    joint_of = _joints(pieces, joint_distance, uprights)
+    solution = _rectify_all(handles, pieces, joint_of, t, uprights) if handles.options.rectify == "all" else None
+    rows = Rows(t, background, _parts_by_line(pieces, solution, background), joint_of)
+    for i, h in enumerate(handles.handles):
+        kind_of(h).add_controls(i, h, rows)
+    rows.share_joints()
+    points, values = rows.values()
+    return Constraints(
+        tuple(rows.controls),
+        points,
+        values,
+        tuple(rows.lines),
+        solution,
+        tuple(rows.chains),
+        tuple(rows.disks),
+        tuple(rows.cages),
+        near_pole,
+    )
+
+
+def _near_pole(handles: Handles) -> tuple[tuple[int, float], ...]:
+    """The rectified lines that climb to :data:`POLE_LATITUDE` or beyond: index and signed latitude."""
     tops = [(i, _pole_latitude(h)) for i, h in enumerate(handles.handles) if isinstance(h, LineHandle)]
-    near_pole = tuple((i, top) for i, top in tops if top)
-    kept = {i for i, _ in near_pole} if background else set()
+    return tuple((i, top) for i, top in tops if top)
+
+
+def _lines_cut_at_crossings(handles: Handles, kept: set[int]) -> list[_Piece]:
+    """Every line as a piece, the lines in ``kept`` not rectified (kept as they are), then cut at their crossings (Sec. 4)."""
     pieces = [
         _Piece(i, coords.lonlat_to_xyz(h.start), coords.lonlat_to_xyz(h.end), replace(h, rectify=False) if i in kept else h)
         for i, h in enumerate(handles.handles)
         if isinstance(h, LineHandle)
     ]
-    pieces = _split_crossings(pieces)
-    # the weights' size known so far (a control and samples per piece), before the costlier steps
-    check_weights(len(pieces) * (samples - 1), len(pieces))
-    uprights = {
-        k for k, p in enumerate(pieces) if upright and p.line.rectify and p.line.targets is None and near_vertical(p.line.start, p.line.end)
-    }
-    joint_of = _joints(pieces, joint_distance, uprights)
-    pieces_of: dict[int, list[int]] = {}
+    return _split_crossings(pieces)
+
+
+def _uprights(pieces: list[_Piece]) -> set[int]:
+    """The rectified pieces (without explicit targets) near a vertical great circle: the levelled input's vertical edges."""
+    return {k for k, p in enumerate(pieces) if p.line.rectify and p.line.targets is None and near_vertical(p.line.start, p.line.end)}
+
+
+def _parts_by_line(pieces: list[_Piece], solution: RectifySolution | None, background: bool) -> dict[int, list[tuple[int, list[Part]]]]:
+    """For each line handle, its pieces in order and each piece's maps (:func:`_line_parts`)."""
+    out: dict[int, list[tuple[int, list[Part]]]] = {}
     for k, piece in enumerate(pieces):
-        pieces_of.setdefault(piece.handle, []).append(k)
-    solution = _rectify_all(handles, pieces, joint_of, t, uprights) if handles.options.rectify == "all" else None
-    joint_rows: dict[int, dict[int, float]] = {}
-    joint_points: dict[int, NDArray[np.float64]] = {}
-    chains: list[tuple[int, ...]] = []
-    disks: list[tuple[int, NDArray[np.float64]]] = []
-    cages: list[tuple[tuple[int, ...], NDArray[np.float64]]] = []
-
-    for i, h in enumerate(handles.handles):
-        if isinstance(h, PointHandle):
-            controls.append(Control(h.moebius(), i, f"handles[{i}] (point)"))
-            centre = coords.lonlat_to_xyz(h.final)
-            rows.append((centre, {len(controls) - 1: 1.0}))
-            if background:  # the rim of the disk where the point's map holds exactly
-                disks.append((len(controls) - 1, centre))
-                east, north = coords.local_frame(h.final)
-                turn = np.linspace(0.0, 2.0 * math.pi, RIM_SAMPLES, endpoint=False)[:, None]
-                r = math.radians(POINT_HOLD)
-                rim = math.cos(r) * centre + math.sin(r) * (np.cos(turn) * east + np.sin(turn) * north)
-                rows.extend((p, {len(controls) - 1: 1.0}) for p in rim)
-        elif isinstance(h, CageHandle):
-            first = len(controls)
-            maps = h.vertex_maps(carry=background)
-            for v, m in enumerate(maps):
-                controls.append(Control(m, i, f"handles[{i}] (cage vertex {v})"))
-            cages.append((tuple(range(first, len(controls))), np.asarray(h.finals, dtype=np.float64)))
-            finals = coords.lonlat_to_xyz(np.asarray(h.finals, dtype=np.float64))
-            n = len(maps)
-            for v in range(n):
-                w = (v + 1) % n
-                arc = coords.lonlat_to_xyz(coords.geodesic(coords.xyz_to_lonlat(finals[v]), coords.xyz_to_lonlat(finals[w]), t[:-1]))
-                for s, point in enumerate(arc):
-                    weights = {first + v: 1.0 - t[s]}
-                    if t[s] > 0:
-                        weights[first + w] = t[s]
-                    rows.append((point, weights))
-        else:
-            parts_of = {
-                k: _line_parts(pieces[k].line, pieces[k], solution.targets[k] if solution is not None else None, background)
-                for k in pieces_of[i]
-            }
-            total = sum(len(p) for p in parts_of.values())
-            number = 0
-            for k, parts in parts_of.items():
-                first = len(line_samples)
-                for j, (start, end, m) in enumerate(parts):
-                    number += 1
-                    part = f", part {number} of {total}" if total > 1 else ""
-                    controls.append(Control(m, i, f"handles[{i}] (line{part})"))
-                    c = len(controls) - 1
-                    src = coords.geodesic(start, end, t)
-                    line_samples.append((c, src))
-                    out = m.apply_xyz(coords.lonlat_to_xyz(src))
-                    for s in range(samples):
-                        if s == 0 and j > 0:
-                            continue  # the joint with the piece before, already a row
-                        if s == samples - 1 and j < len(parts) - 1:
-                            rows.append((out[s], {c: 0.5, c + 1: 0.5}))  # both pieces' maps put it here
-                            continue
-                        end_id = 0 if s == 0 else 1 if s == samples - 1 else None
-                        if end_id is not None and (k, end_id) in joint_of:
-                            jid = joint_of[(k, end_id)]
-                            joint_rows.setdefault(jid, {})[c] = 1.0
-                            joint_points.setdefault(jid, out[s])
-                            continue
-                        rows.append((out[s], {c: 1.0}))
-                chains.append(tuple(range(first, len(line_samples))))
-    for jid, members in joint_rows.items():
-        share = 1.0 / len(members)
-        rows.append((joint_points[jid], dict.fromkeys(members, share)))
-
-    k = len(controls)
-    points = np.array([r[0] for r in rows], dtype=np.float64).reshape(-1, 3)
-    values = np.zeros((len(rows), k))
-    for r, (_, weights) in enumerate(rows):
-        for c, weight in weights.items():
-            values[r, c] = weight
-    return Constraints(
-        tuple(controls), points, values, tuple(line_samples), solution, tuple(chains), tuple(disks), tuple(cages), near_pole
-    )
+        targets = solution.targets[k] if solution is not None else None
+        out.setdefault(piece.handle, []).append((k, _line_parts(piece.line, piece, targets, background)))
+    return out
 
 
 def _pole_latitude(h: LineHandle) -> float:
@@ -466,9 +403,7 @@ def _pole_latitude(h: LineHandle) -> float:
     return top if middle[np.argmax(np.abs(middle))] > 0 else -top
 
 
-def _line_parts(
-    h: LineHandle, piece: _Piece, targets: NDArray[np.float64] | None, background: bool
-) -> list[tuple[NDArray[np.float64], NDArray[np.float64], Moebius]]:
+def _line_parts(h: LineHandle, piece: _Piece, targets: NDArray[np.float64] | None, background: bool) -> list[Part]:
     """A line piece's map, cut for its length (:func:`split_line`) where the still background is on and the line is rectified."""
     start, end = coords.xyz_to_lonlat(piece.start), coords.xyz_to_lonlat(piece.end)
     # explicit targets keep the handle as drawn; otherwise the piece's (split, snapped) ends
@@ -488,7 +423,7 @@ def _line_parts(
 def _rectify_all(
     handles: Handles, pieces: list[_Piece], joint_of: dict[tuple[int, int], int], t: NDArray, uprights: set[int] | None = None
 ) -> RectifySolution | None:
-    """Sec. 3.4 for the rectified line pieces; the other handles take part as they are."""
+    """Sec. 3.4 for the rectified line pieces; the other handles take part as they are (their kinds' anchors)."""
     free = [p.line.rectify and p.line.targets is None for p in pieces]
     if not any(free):
         return None
@@ -500,13 +435,5 @@ def _rectify_all(
             outputs = piece.line.moebius()(coords.geodesic(start, end, t))  # its targets, or the identity
         joints = (joint_of.get((k, 0)), joint_of.get((k, 1)))
         bones.append(Bone(tuple(start), tuple(end), free[k], joints, outputs, free[k] and k in (uprights or set())))
-    anchors = []
-    for h in handles.handles:
-        if isinstance(h, PointHandle):
-            anchors.append(Anchor(np.array([h.position], np.float64), np.array([h.final], np.float64)))
-        elif isinstance(h, CageHandle):
-            n = len(h.vertices)
-            for v in range(n):
-                w = (v + 1) % n
-                anchors.append(Anchor(coords.geodesic(h.vertices[v], h.vertices[w], t), coords.geodesic(h.finals[v], h.finals[w], t)))
+    anchors = [anchor for h in handles.handles for anchor in kind_of(h).anchors(h, t)]
     return solve_bones(bones, anchors, samples=len(t), keep="endpoints" if handles.options.anchor is None else "sphere")

@@ -393,103 +393,189 @@ def _new_crossings(bones: Sequence[Bone], solution: RectifySolution) -> set[int]
     return {k for pair in set(crossing_pairs(outputs)) - before for k in pair if bones[k].free}
 
 
-def _solve_bones(
-    bones: Sequence[Bone], anchors: Sequence[Anchor], samples: int, keep: str, ends: NDArray[np.float64]
-) -> RectifySolution:
-    """:func:`solve_bones` with each bone's endpoints' keep weight multiplied by ``ends`` (k,)."""
-    import scipy.sparse as sp
-    from scipy.spatial import cKDTree
+def _solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor], samples: int, keep: str, ends: NDArray[np.float64]) -> RectifySolution:
+    """:func:`solve_bones` with each bone's endpoints' keep weight multiplied by ``ends`` (k,).
 
+    The rows in order: eq. (8) for every close pair of samples, then for each free bone
+    eq. (9) and eq. (10); with ``keep="sphere"`` each free bone's motion metric, and each
+    upright bone's vertical, join them in the coupled solve.
+    """
     var, known, n = _slots(bones)
-    t = np.linspace(0.0, 1.0, samples)
-    # every participant's samples, their displacement where known, and how free bones move them
-    inputs, disp, owner, param, free = [], [], [], [], []
-    spans: list[float] = []
-    for k, b in enumerate(bones):
-        src = coords.geodesic(b.start, b.end, t)
-        src[:, 0] = coords.unwrap_lon(src[:, 0], known[k, 0, 0] if b.free else src[0, 0])
-        if b.free:
-            d = np.zeros((samples, 2))
-        else:
-            kept = _kept_outputs(b)
-            d = np.stack([coords.wrap_lon(kept[:, 0] - src[:, 0]), kept[:, 1] - src[:, 1]], axis=1)
-        inputs.append(src)
-        disp.append(d)
-        owner.append(np.full(samples, k))
-        param.append(t)
-        free.append(np.full(samples, b.free))
-        spans.append(float(np.hypot(coords.wrap_lon(src[-1, 0] - src[0, 0]), src[-1, 1] - src[0, 1])))
-    for a, anchor in enumerate(anchors):
-        src = np.asarray(anchor.inputs, np.float64).reshape(-1, 2)
-        out = np.asarray(anchor.outputs, np.float64).reshape(-1, 2)
-        inputs.append(src)
-        disp.append(np.stack([coords.wrap_lon(out[:, 0] - src[:, 0]), out[:, 1] - src[:, 1]], axis=1))
-        owner.append(np.full(len(src), len(bones) + a))
-        param.append(np.linspace(0.0, 1.0, len(src)) if len(src) > 1 else np.zeros(1))
-        free.append(np.zeros(len(src), dtype=bool))
-        spans.append(float(np.hypot(coords.wrap_lon(src[-1, 0] - src[0, 0]), src[-1, 1] - src[0, 1])) if len(src) > 1 else 0.0)
-    inputs_all, disp_all = np.concatenate(inputs), np.concatenate(disp)
-    owner_all, param_all, free_all = np.concatenate(owner), np.concatenate(param), np.concatenate(free)
-    bone_of = np.where(owner_all < len(bones), owner_all, 0)
-
-    def moved(idx: NDArray, sign: float) -> tuple[list[tuple[NDArray, NDArray]], NDArray]:
-        """Entries and known part of ``sign * displacement`` of samples ``idx``."""
-        is_free = free_all[idx]
-        k, tt = bone_of[idx], param_all[idx]
-        v0, v2 = np.where(is_free, var[k, 0], -1), np.where(is_free, var[k, 2], -1)
-        # free: the chord of its control points (x = 0 at `known`) minus the input sample; a
-        # slot joined to a kept bone has no unknown and sits in `known`. Kept: its displacement.
-        chord = (1 - tt)[:, None] * known[k, 0] + tt[:, None] * known[k, 2]
-        const = np.where(is_free[:, None], chord - inputs_all[idx], disp_all[idx])
-        return [(v0, sign * (1 - tt) * is_free), (v2, sign * tt * is_free)], sign * const
-
+    taken = _samples_of(bones, anchors, samples, known)
     rows = _Rows()
+    _eq8_relative_positions(rows, taken, var, known)
     metrics: list[tuple[int, NDArray[np.float64]]] = []  # keep="sphere": (bone, motion metric)
-    # every pair of samples of different handles closer than S_k / 4 (eq. 8), one of them solved for
-    span_all = np.asarray(spans)[owner_all]
-    east = np.mod(inputs_all[:, 0], 360.0)
-    east[east >= 360.0] = 0.0  # a tiny negative longitude rounds to 360, outside the periodic box
-    plane = np.stack([east, inputs_all[:, 1] + 90.0], axis=1)
-    tree = cKDTree(plane, boxsize=[360.0, 1e6])  # longitude periodic: the seam is nothing special
-    asking = np.flatnonzero(span_all > 0)
-    found = tree.query_ball_point(plane[asking], span_all[asking] / 4)
-    i = np.repeat(asking, [len(f) for f in found])
-    j = np.fromiter(itertools.chain.from_iterable(found), dtype=np.int64, count=len(i))
-    pair = (owner_all[i] != owner_all[j]) & (free_all[i] | free_all[j])
-    i, j = i[pair], j[pair]
-    if len(i):
-        gap = inputs_all[i] - inputs_all[j]
-        r = np.hypot(coords.wrap_lon(gap[:, 0]), gap[:, 1])
-        w = RELATIVE_WEIGHT * np.clip(1 - 4 * r / span_all[i], 0.0, None) ** 4
-        entries_i, const_i = moved(i, 1.0)
-        entries_j, const_j = moved(j, -1.0)
-        rows.add(entries_i + entries_j, const_i + const_j, w)
     for k, b in enumerate(bones):
         if not b.free:
             continue
-        v, p = var[k], known[k]
-        tm = 0.5 if keep == "endpoints" else _along(p)
-        rows.add(  # eq. (9): middle - ((1 - t) start + t end), t = 1/2 in the paper
-            [(v[1:2], np.ones(1)), (v[0:1], np.full(1, tm - 1.0)), (v[2:3], np.full(1, -tm))],
-            (p[1] - (1.0 - tm) * p[0] - tm * p[2])[None],
-            np.full(1, RECTIFY_WEIGHT * (1.0 if keep == "endpoints" else LEAST_MOTION_STIFFNESS)),
-        )
+        _eq9_middle_on_chord(rows, var[k], known[k], keep)
         if keep == "sphere":
             metrics.append((k, motion_metric(_inputs(b), NEAR_LINE)))
-        for s in (0, 2) if keep == "endpoints" else (0, 1, 2):  # eq. (10): the endpoints stay (and the middle)
-            hold = ends[k] if keep == "sphere" and s != 1 else 1.0
-            rows.add([(v[s : s + 1], np.ones(1))], np.zeros((1, 2)), np.full(1, KEEP_WEIGHT * hold))
-    a = sp.csr_matrix((np.concatenate(rows.val), (np.concatenate(rows.row), np.concatenate(rows.col))), shape=(rows.count, n))
-    w = np.concatenate(rows.weight)
-    const = np.concatenate(rows.const)
-    q = (a.T @ sp.diags(w) @ a).tocsc()
-    rhs = -(a.T @ (w[:, None] * const))
+        _eq10_keep_in_place(rows, var[k], keep, ends[k])
+    q, rhs = _normal_equations(rows, n)
     x = np.zeros((n, 2))
     upright_weight = RECTIFY_WEIGHT * (1.0 if keep == "endpoints" else LEAST_MOTION_STIFFNESS)  # as its straightness
     if n and (metrics or any(b.free and b.upright for b in bones)):
         x = _solve_coupled(q.toarray(), rhs, metrics, var, known, bones, upright_weight)
     elif n:
         x = np.linalg.solve(q.toarray(), rhs)  # n is 3 per line: small and dense is fastest (numpy's LAPACK: see _solve_coupled)
+    return _solution(bones, var, known, x, q)
+
+
+@dataclass(frozen=True)
+class _Samples:
+    """Every participant's samples in the relative-position terms: the bones', then the anchors'.
+
+    Attributes
+    ----------
+    inputs, displacement : ndarray of float64, shape (m, 2)
+        Input ``[lon, lat]`` (a free bone's unwrapped in its own frame) and, where known
+        (kept bones and anchors), output minus input; zero for a free bone's.
+    owner : ndarray of int, shape (m,)
+        The bone's index, or ``len(bones) + a`` for anchor ``a``.
+    param : ndarray of float64, shape (m,)
+        The sample's parameter along its owner, 0 to 1.
+    free : ndarray of bool, shape (m,)
+        Whether it belongs to a free bone (moves with the unknowns).
+    span : ndarray of float64, shape (m,)
+        Its owner's ``S_k``: the distance between the owner's ends in the lon/lat plane.
+    bone : ndarray of int, shape (m,)
+        Its owner's bone index (0 for an anchor's: read only where ``free``).
+    """
+
+    inputs: NDArray[np.float64]
+    displacement: NDArray[np.float64]
+    owner: NDArray[np.int64]
+    param: NDArray[np.float64]
+    free: NDArray[np.bool_]
+    span: NDArray[np.float64]
+    bone: NDArray[np.int64]
+
+
+def _span(src: NDArray[np.float64]) -> float:
+    """The distance in the lon/lat plane between the first and last samples (0 for one sample)."""
+    return float(np.hypot(coords.wrap_lon(src[-1, 0] - src[0, 0]), src[-1, 1] - src[0, 1])) if len(src) > 1 else 0.0
+
+
+def _offset(outputs: NDArray[np.float64], inputs: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Output minus input ``[lon, lat]``, the longitude across the seam the short way."""
+    return np.stack([coords.wrap_lon(outputs[:, 0] - inputs[:, 0]), outputs[:, 1] - inputs[:, 1]], axis=1)
+
+
+def _samples_of(bones: Sequence[Bone], anchors: Sequence[Anchor], samples: int, known: NDArray[np.float64]) -> _Samples:
+    """The samples of every bone (``samples`` each, along its geodesic) and of every anchor, as one :class:`_Samples`."""
+    t = np.linspace(0.0, 1.0, samples)
+    inputs, disp, owner, param, free, spans = [], [], [], [], [], []
+    for k, b in enumerate(bones):
+        src = coords.geodesic(b.start, b.end, t)
+        src[:, 0] = coords.unwrap_lon(src[:, 0], known[k, 0, 0] if b.free else src[0, 0])
+        inputs.append(src)
+        disp.append(np.zeros((samples, 2)) if b.free else _offset(_kept_outputs(b), src))
+        owner.append(np.full(samples, k))
+        param.append(t)
+        free.append(np.full(samples, b.free))
+        spans.append(_span(src))
+    for a, anchor in enumerate(anchors):
+        src = np.asarray(anchor.inputs, np.float64).reshape(-1, 2)
+        inputs.append(src)
+        disp.append(_offset(np.asarray(anchor.outputs, np.float64).reshape(-1, 2), src))
+        owner.append(np.full(len(src), len(bones) + a))
+        param.append(np.linspace(0.0, 1.0, len(src)) if len(src) > 1 else np.zeros(1))
+        free.append(np.zeros(len(src), dtype=bool))
+        spans.append(_span(src))
+    owner_all = np.concatenate(owner)
+    return _Samples(
+        np.concatenate(inputs),
+        np.concatenate(disp),
+        owner_all,
+        np.concatenate(param),
+        np.concatenate(free),
+        np.asarray(spans)[owner_all],
+        np.where(owner_all < len(bones), owner_all, 0),
+    )
+
+
+def _moved(taken: _Samples, var: NDArray, known: NDArray, idx: NDArray, sign: float) -> tuple[list[tuple[NDArray, NDArray]], NDArray]:
+    """Entries and known part of ``sign * displacement`` of samples ``idx``.
+
+    A free bone's sample moves to the chord of its output ends (``(1 - t) P1 + t P3``, with
+    x = 0 at ``known``; a slot joined to a kept bone has no unknown and sits in ``known``);
+    any other sample by its known displacement.
+    """
+    is_free = taken.free[idx]
+    k, tt = taken.bone[idx], taken.param[idx]
+    v0, v2 = np.where(is_free, var[k, 0], -1), np.where(is_free, var[k, 2], -1)
+    chord = (1 - tt)[:, None] * known[k, 0] + tt[:, None] * known[k, 2]
+    const = np.where(is_free[:, None], chord - taken.inputs[idx], taken.displacement[idx])
+    return [(v0, sign * (1 - tt) * is_free), (v2, sign * tt * is_free)], sign * const
+
+
+def _close_pairs(taken: _Samples) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Every pair ``(i, j)`` of samples of different handles with ``j`` closer to ``i`` than ``S / 4`` (``i``'s owner's span), one of them free."""
+    from scipy.spatial import cKDTree
+
+    east = np.mod(taken.inputs[:, 0], 360.0)
+    east[east >= 360.0] = 0.0  # a tiny negative longitude rounds to 360, outside the periodic box
+    plane = np.stack([east, taken.inputs[:, 1] + 90.0], axis=1)
+    tree = cKDTree(plane, boxsize=[360.0, 1e6])  # longitude periodic: the seam is nothing special
+    asking = np.flatnonzero(taken.span > 0)
+    found = tree.query_ball_point(plane[asking], taken.span[asking] / 4)
+    i = np.repeat(asking, [len(f) for f in found])
+    j = np.fromiter(itertools.chain.from_iterable(found), dtype=np.int64, count=len(i))
+    pair = (taken.owner[i] != taken.owner[j]) & (taken.free[i] | taken.free[j])
+    return i[pair], j[pair]
+
+
+def _eq8_relative_positions(rows: _Rows, taken: _Samples, var: NDArray, known: NDArray) -> None:
+    """Eqs. (5)-(8): close samples of different handles keep their offset, weight ``(1/20)(1 - 4 r / S_k)^4``."""
+    i, j = _close_pairs(taken)
+    if not len(i):
+        return
+    gap = taken.inputs[i] - taken.inputs[j]
+    r = np.hypot(coords.wrap_lon(gap[:, 0]), gap[:, 1])
+    w = RELATIVE_WEIGHT * np.clip(1 - 4 * r / taken.span[i], 0.0, None) ** 4
+    entries_i, const_i = _moved(taken, var, known, i, 1.0)
+    entries_j, const_j = _moved(taken, var, known, j, -1.0)
+    rows.add(entries_i + entries_j, const_i + const_j, w)
+
+
+def _eq9_middle_on_chord(rows: _Rows, v: NDArray, p: NDArray, keep: str) -> None:
+    """Eq. (9): a free bone's middle on its output chord, ``middle - ((1 - t) start + t end)``.
+
+    ``t`` is 1/2 in the paper (``keep="endpoints"``); otherwise where the middle lies along
+    the input chord (:func:`_along`), held :data:`LEAST_MOTION_STIFFNESS` times harder.
+    ``v`` (3,) are the bone's unknowns, ``p`` (3, 2) its known control points.
+    """
+    tm = 0.5 if keep == "endpoints" else _along(p)
+    rows.add(
+        [(v[1:2], np.ones(1)), (v[0:1], np.full(1, tm - 1.0)), (v[2:3], np.full(1, -tm))],
+        (p[1] - (1.0 - tm) * p[0] - tm * p[2])[None],
+        np.full(1, RECTIFY_WEIGHT * (1.0 if keep == "endpoints" else LEAST_MOTION_STIFFNESS)),
+    )
+
+
+def _eq10_keep_in_place(rows: _Rows, v: NDArray, keep: str, ends: float) -> None:
+    """Eq. (10): a free bone's endpoints stay where they were (and its middle, unless ``keep="endpoints"``).
+
+    Weight :data:`KEEP_WEIGHT`; with ``keep="sphere"`` the endpoints' times ``ends``.
+    """
+    for s in (0, 2) if keep == "endpoints" else (0, 1, 2):
+        hold = ends if keep == "sphere" and s != 1 else 1.0
+        rows.add([(v[s : s + 1], np.ones(1))], np.zeros((1, 2)), np.full(1, KEEP_WEIGHT * hold))
+
+
+def _normal_equations(rows: _Rows, n: int) -> tuple[sp.csc_matrix, NDArray[np.float64]]:
+    """The weighted least squares' normal matrix ``A^T W A`` (n, n) and right-hand side (n, 2), one for lon and lat."""
+    import scipy.sparse as sp
+
+    a = sp.csr_matrix((np.concatenate(rows.val), (np.concatenate(rows.row), np.concatenate(rows.col))), shape=(rows.count, n))
+    w = np.concatenate(rows.weight)
+    const = np.concatenate(rows.const)
+    return (a.T @ sp.diags(w) @ a).tocsc(), -(a.T @ (w[:, None] * const))
+
+
+def _solution(bones: Sequence[Bone], var: NDArray, known: NDArray, x: NDArray[np.float64], q: sp.csc_matrix) -> RectifySolution:
+    """The free bones' output control points from the unknowns ``x`` (n, 2), longitudes wrapped."""
     targets: list[NDArray[np.float64] | None] = []
     moved_by: list[float] = []
     for k, b in enumerate(bones):
