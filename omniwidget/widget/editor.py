@@ -1,9 +1,10 @@
 """The notebook editor: draw handles on a panorama, move their control points, see the result.
 
-The front end (``static/editor.js``, a plain ES module that anywidget loads without a build
-step) draws the panorama and the handles and does every drag in the browser. The kernel
-hears of whole edits only: the handles document when a drag ends, or a command (undo,
-rectify, reset, an arrow tip moved, save, load). Everything else is a plain Python
+The front end (``static/editor.js`` and the ES modules it imports, made one module,
+``static/editor.bundle.js``, by ``build.mjs`` at the repository's root) draws the panorama
+and the handles and does every drag in the browser. The kernel hears of whole edits only:
+the handles document when a drag ends, or a command (undo, rectify, reset, an arrow tip
+moved, save, load). Everything else is a plain Python
 :class:`~omniwidget.app.session.EditingSession` (undo and redo, autosave, the worker that
 computes the newest edit's preview, the status, Save image, the live drag's basis): the
 widget syncs its traits with the session and passes the front end's messages to it.
@@ -16,7 +17,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 from pathlib import Path
 from typing import Any, Literal
 
@@ -31,6 +31,10 @@ from ..errors import HandlesError
 __all__ = ["AUTOSAVE_SUFFIX", "DISPLAY_WIDTH", "HISTORY", "PREVIEW_WIDTH", "RESULT_SUFFIX", "Editor", "saved_handles"]
 
 _STATIC = Path(__file__).parent / "static"
+#: The front end anywidget loads: one ES module, built from ``static/*.js`` and committed. A path, not
+#: its text, so that with ``ANYWIDGET_HMR=1`` anywidget watches the file and reloads the open widgets
+#: whenever ``npm run watch`` rebuilds it.
+_BUNDLE = _STATIC / "editor.bundle.js"
 
 
 class _RefusedHandles(HandlesError, traitlets.TraitError):
@@ -50,38 +54,6 @@ class _Document(traitlets.TraitType):
             return as_document(value).to_dict()
         except HandlesError as exc:
             raise _RefusedHandles(exc.where, exc.problem) from None
-
-
-_IMPORT = re.compile(r'^import \{([^}]*)\} from "\./(\w+)\.js";$', re.M)
-_EXPORT = re.compile(r"^export (?:const|let|class|function\*?|async function) (\w+)", re.M)
-
-
-def _bundle() -> str:
-    """``static/editor.js`` with the modules it imports inlined: anywidget loads one module.
-
-    Each module (``sphere.js``, ``moebius.js``, ``view.js``, ..., which ``node --test`` also
-    imports on their own) runs once, before the first module that imports it, in a function
-    scope of its own, so its private names do not clash with another module's; an import
-    takes the names it asks for from the object of the module's exports. Modules must not
-    import each other in a cycle.
-    """
-    modules: list[str] = []  # each module's code, in the order they run
-    names: dict[str, str] = {}  # a module's file name: the name of its exports in the bundle
-
-    def inline(match: re.Match) -> str:
-        return f"const {{ {match.group(1).strip()} }} = {module(match.group(2))};"
-
-    def module(name: str) -> str:
-        if name not in names:
-            names[name] = f"_module_{name}"
-            code = _IMPORT.sub(inline, (_STATIC / f"{name}.js").read_text(encoding="utf-8"))
-            exports = ", ".join(_EXPORT.findall(code))
-            code = code.replace("\nexport ", "\n")
-            modules.append(f"const {names[name]} = (() => {{\n{code}\nreturn {{ {exports} }};\n}})();")
-        return names[name]
-
-    editor = _IMPORT.sub(inline, (_STATIC / "editor.js").read_text(encoding="utf-8"))
-    return "\n".join(modules) + "\n" + editor
 
 
 class Editor(anywidget.AnyWidget):
@@ -217,7 +189,7 @@ class Editor(anywidget.AnyWidget):
     >>> editor  # doctest: +SKIP
     """
 
-    _esm = _bundle()
+    _esm = _BUNDLE
     _css = _STATIC / "editor.css"
 
     handles = _Document().tag(sync=True)

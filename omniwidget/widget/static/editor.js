@@ -1,5 +1,7 @@
-// omniwidget editor: the front end of omniwidget.widget.Editor, a plain ES module that
-// anywidget loads as it is (no build step; editor.py inlines the modules imported here).
+// omniwidget editor: the front end of omniwidget.widget.Editor, an ES module that anywidget
+// loads as one module with the modules it imports, editor.bundle.js, built by esbuild
+// (npm run build; npm run watch rebuilds it on every change, and anywidget's hot reload,
+// ANYWIDGET_HMR=1, shows the new build in the open notebooks).
 //
 // Everything the browser tells the kernel is in [lon, lat] degrees, the conventions of
 // omniwidget/sphere/coords.py (sphere.js). The pure parts are modules of their own, each
