@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Many frames, one map (issue 7, target 6): frames per second at 2048 x 1024 once the map is known.
+"""Many frames, one map: frames per second at 2048 x 1024 once the map is known.
 
 Usage::
 
@@ -10,7 +10,7 @@ The frames are the bundled panorama at 2048 x 1024, each shifted in brightness (
 two are alike), written as JPEG (OpenCV's default quality, 95) to a temporary folder. The
 map is the command-line demo's handles (two rectified lines and a cage). Timed, in one run:
 
-1. :func:`omniwidget.io.frames.warp_frames`, reading, resampling and writing every frame
+1. :func:`omniwidget.app.frames.warp_frames`, reading, resampling and writing every frame
    (what ``omniwidget warp FRAMES... -H handles.json -o folder/`` does after the map);
 2. the same work in a plain loop on one thread (``cv2.imread``, ``cv2.remap``, ``cv2.imwrite``),
    the reference.
@@ -34,7 +34,7 @@ sys.path.insert(0, str(REPO_ROOT))
 
 import omniwidget as ow  # noqa: E402
 from omniwidget.app.cli import DEMO_HANDLES  # noqa: E402
-from omniwidget.io.frames import map_coordinates, warp_frames  # noqa: E402
+from omniwidget.app.frames import map_coordinates, warp_frames  # noqa: E402
 from omniwidget.raster.warping import pad_panorama  # noqa: E402
 
 WIDTH = 2048

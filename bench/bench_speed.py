@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Issue 7's figures, each beside its reference measured in the same run (run on demand, not a test).
+"""The speed figures, each beside its reference measured in the same run (run on demand, not a test).
 
 Usage::
 
@@ -152,7 +152,7 @@ def bbw_figures(image, scene, result, repeat: int, quick: bool) -> None:
 
 def per_pixel(image, result, stage: dict[bool, float]) -> None:
     print("\n3. the per-pixel stage against a bare cv2.remap")
-    from omniwidget.io.frames import map_coordinates
+    from omniwidget.app.frames import map_coordinates
 
     coordinates = map_coordinates(result.inverse_map(), image.shape[1])
     padded = pad_panorama(image)

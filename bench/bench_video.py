@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""A whole 360° video warped by one map (issue 21): frames per second against FFmpeg's own transcode.
+"""A whole 360° video warped by one map: frames per second against FFmpeg's own transcode.
 
 Usage::
 
@@ -18,7 +18,7 @@ Timed in turns in one run, each ``--repeat`` times, the same codec settings
 
 1. ``ffmpeg -i in.mp4 -c:v libx264 -crf C -preset P -c:a copy out.mp4``: FFmpeg's own
    transcode (the Debian binary, whole process): the reference of the target (0.8x);
-2. ours: :func:`omniwidget.io.video.warp_video` with the map (decode, warp, encode, mux,
+2. ours: :func:`omniwidget.app.video.warp_video` with the map (decode, warp, encode, mux,
    the spherical metadata), the whole call; "frames only" leaves out what it does once before
    the first frame (open the file, turn the map into pixel coordinates for the luma and the
    chroma planes), which a longer video spreads thinner;
@@ -53,7 +53,7 @@ sys.path.insert(0, str(REPO_ROOT))
 
 import omniwidget as ow  # noqa: E402
 from omniwidget.app.cli import DEMO_HANDLES  # noqa: E402
-from omniwidget.io.video import warp_video  # noqa: E402
+from omniwidget.app.video import warp_video  # noqa: E402
 from omniwidget.sphere.moebius import Moebius  # noqa: E402
 
 RATE = 30

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""A video cut into time ranges and joined again (issue 21, part 3): what the cuts cost.
+"""A video cut into time ranges and joined again: what the cuts cost.
 
 Usage::
 
@@ -47,7 +47,7 @@ from bench_video import make_clip  # noqa: E402
 import omniwidget as ow  # noqa: E402
 from omniwidget.app.batch import warp_files  # noqa: E402
 from omniwidget.app.cli import DEMO_HANDLES  # noqa: E402
-from omniwidget.io.video import warp_video  # noqa: E402
+from omniwidget.app.video import warp_video  # noqa: E402
 
 
 def main() -> None:

@@ -416,7 +416,7 @@ def test_the_cluster_writes_the_video_bytes_of_the_local_run(client, clip, files
 
 def _arm_kill_in_a_range(marker: str, after: int) -> None:
     """On a worker: the first range of the cluster to warp its ``after``-th frame kills its process there, mid-encode."""
-    import omniwidget.io.video as video
+    import omniwidget.app.video as video
 
     original = getattr(video._Warper.__call__, "original", video._Warper.__call__)
     seen = [0]
@@ -437,7 +437,7 @@ def _arm_kill_in_a_range(marker: str, after: int) -> None:
 
 
 def _disarm_range_kill() -> None:
-    import omniwidget.io.video as video
+    import omniwidget.app.video as video
 
     video._Warper.__call__ = getattr(video._Warper.__call__, "original", video._Warper.__call__)
 

@@ -294,7 +294,7 @@ def test_many_frames_refuse_what_would_lose_work(files, frames, capsys):
 
 
 def test_progress_is_reported_frame_by_frame(files, frames):
-    from omniwidget.io.frames import map_coordinates, warp_frames
+    from omniwidget.app.frames import map_coordinates, warp_frames
 
     calls = []
     inverse = np.stack(np.meshgrid(*coords.grid_lonlat(256)), axis=-1)

@@ -173,7 +173,7 @@ def test_save_video_writes_every_frame_warped_with_progress(clip_copy):
 
 
 def test_cancelling_a_save_leaves_no_file(clip_copy, monkeypatch):
-    from omniwidget.io import video as video_module
+    from omniwidget.app import video as video_module
 
     s = _session(clip_copy, handles=HANDLES)
     real = video_module.warp_video

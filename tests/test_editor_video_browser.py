@@ -110,7 +110,7 @@ def test_the_slider_shows_another_frame_and_save_video_writes_the_video(jupyter_
         output.unlink()
         bh.run_in_kernel(
             client,
-            "import time, omniwidget.io.video as _video\n"
+            "import time, omniwidget.app.video as _video\n"
             "_warp_frame = _video._Warper.__call__\n"
             "_video._Warper.__call__ = lambda self, frame: (time.sleep(0.4), _warp_frame(self, frame))[1]\n"
             "print('slowed')",

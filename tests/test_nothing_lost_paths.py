@@ -166,7 +166,7 @@ def test_the_dask_batch_refuses_before_it_connects(d, capsys):
 
 def test_the_python_batch_refuses_links_and_the_handles_file(d):
     from omniwidget.app.batch import warp_files
-    from omniwidget.io.frames import warp_frames
+    from omniwidget.app.frames import warp_frames
 
     before = _state(d)
     os.link(d / "f0.npy", d / "hard.npy")

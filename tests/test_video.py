@@ -1,4 +1,4 @@
-"""Videos in and out (issue 21): ``omniwidget warp IN.mp4 ... -o OUT.mp4``, :mod:`omniwidget.io.video`, :mod:`omniwidget.io.spherical`.
+"""Videos in and out: ``omniwidget warp IN.mp4 ... -o OUT.mp4``, :mod:`omniwidget.io.video`, :mod:`omniwidget.io.spherical`.
 
 The clips are made here, once per session, in a temporary folder: the bundled panorama at
 512 x 256 turned 2° more each frame (``warp_moebius``), 24 frames at 24 fps, H.264 with a
@@ -413,7 +413,7 @@ def test_a_video_broken_after_frames_were_encoded_leaves_nothing(clips, tmp_path
     """The damaged clip decodes some frames first: they were encoded, and must not be passed off as the video."""
     import av
 
-    from omniwidget.io.video import warp_video
+    from omniwidget.app.video import warp_video
 
     decodable = 0
     with av.open(str(clips.damaged)) as container, pytest.raises(av.FFmpegError):
@@ -455,7 +455,7 @@ def _identity_map(height: int) -> np.ndarray:
 
 
 def test_a_cancel_leaves_no_output(clips, tmp_path):
-    from omniwidget.io.video import VideoCancelled, warp_video
+    from omniwidget.app.video import VideoCancelled, warp_video
 
     seen = []
     with pytest.raises(VideoCancelled):
@@ -470,7 +470,7 @@ def test_a_cancel_leaves_no_output(clips, tmp_path):
 def test_warp_video_from_handles_reports_what_it_did(clips, tmp_path):
     import cv2
 
-    from omniwidget.io.video import warp_video
+    from omniwidget.app.video import warp_video
 
     threads = cv2.getNumThreads()
     report = warp_video(clips.v1, tmp_path / "out.mov", handles=ow.Handles.from_dict(HANDLES), width=256, order="bicubic", preset="veryfast")
@@ -483,7 +483,7 @@ def test_warp_video_from_handles_reports_what_it_did(clips, tmp_path):
 
 def test_an_identity_map_gives_the_frames_back(clips, tmp_path):
     """Plane by plane through the identity: every plane's samples are only copied, so frames come back within the encoder's loss."""
-    from omniwidget.io.video import warp_video
+    from omniwidget.app.video import warp_video
 
     out = tmp_path / "same.mp4"
     warp_video(clips.plain, out, _identity_map(256), crf=0, preset="ultrafast")  # crf 0: lossless
@@ -511,7 +511,7 @@ def test_the_reader_gives_frames_by_number_and_by_time(clips):
 
 
 def test_half_resolution_map_is_the_map_of_the_half_size_grid():
-    from omniwidget.io.video import half_resolution_map
+    from omniwidget.app.video import half_resolution_map
 
     half = half_resolution_map(_identity_map(32))
     expected = _identity_map(16)

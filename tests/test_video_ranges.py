@@ -1,4 +1,4 @@
-"""Time ranges of a video warped on their own and joined back without re-encoding (issue 21, part 3).
+"""Time ranges of a video warped on their own and joined back without re-encoding.
 
 A long video is cut into ranges so that many machines warp it at once
 (:func:`omniwidget.app.batch.warp_files` on Dask): ``warp_video(start=, end=, audio=False)``
@@ -41,7 +41,8 @@ def _keyframes(path):
 
 @pytest.fixture(scope="module")
 def joined(clips, tmp_path_factory):
-    from omniwidget.io.video import join_video_segments, warp_video
+    from omniwidget.app.video import warp_video
+    from omniwidget.io.video import join_video_segments
 
     folder = tmp_path_factory.mktemp("ranges")
     the_map = _map()
@@ -95,7 +96,7 @@ def test_each_joined_frame_is_the_warp_of_its_input_frame(clips, joined):
 
 
 def test_a_range_with_its_sound_starts_at_zero(clips, tmp_path):
-    from omniwidget.io.video import warp_video
+    from omniwidget.app.video import warp_video
 
     out = tmp_path / "range.mp4"
     report = warp_video(clips.v1, out, _map(), start=0.5, end=0.75)
@@ -109,7 +110,8 @@ def test_a_range_with_its_sound_starts_at_zero(clips, tmp_path):
 
 
 def test_joining_refuses_a_missing_range_or_ranges_encoded_unlike(clips, joined, tmp_path):
-    from omniwidget.io.video import join_video_segments, warp_video
+    from omniwidget.app.video import warp_video
+    from omniwidget.io.video import join_video_segments
 
     folder, segments, _, _, _ = joined
     with pytest.raises(VideoError, match="segments hold 15 frame.*has 24: a range is missing"):
@@ -124,7 +126,7 @@ def test_joining_refuses_a_missing_range_or_ranges_encoded_unlike(clips, joined,
 
 
 def test_bad_ranges_are_refused(clips, tmp_path):
-    from omniwidget.io.video import warp_video
+    from omniwidget.app.video import warp_video
 
     with pytest.raises(ValueError, match="start .* must come before its end"):
         warp_video(clips.v1, tmp_path / "x.mp4", _map(), start=0.5, end=0.5)

@@ -36,7 +36,7 @@ tasks, each holding a decoded image, for as long as the map takes.)
 Videos: a video is cut into equal time ranges (``segment_seconds``). A first task reads its
 length and plans the ranges (on a worker: the client need not see the file), one task per
 range warps it into a hidden file beside the output
-(:func:`~omniwidget.io.video.warp_video` with ``start``/``end``, video only, from a key frame),
+(:func:`~omniwidget.app.video.warp_video` with ``start``/``end``, video only, from a key frame),
 and a last task, which Dask starts when all the ranges are written, joins them without
 re-encoding (:func:`~omniwidget.io.video.join_video_segments`, the source's sound copied
 beside them); then the range files are removed. In-process the same ranges are warped one
@@ -55,6 +55,7 @@ written.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 import threading
@@ -76,6 +77,7 @@ from ..document.handles import Handles, load_handles
 from ..errors import ImageError, OmniwidgetError
 from ..io.video import OUTPUT_SUFFIXES as VIDEO_OUTPUT_SUFFIXES
 from ..io.video import is_video_path
+from .video import VideoSettings
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -83,7 +85,7 @@ if TYPE_CHECKING:
     from ..io.images import Fit
     from ..raster.warping import Order
 
-__all__ = ["BatchReport", "FileReport", "warp_files"]
+__all__ = ["BatchReport", "BatchSettings", "FileReport", "warp_files"]
 
 #: File suffixes an output may have (the formats :func:`~omniwidget.io.images.write_image` writes).
 OUTPUT_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".npy")
@@ -200,14 +202,65 @@ class BatchReport:
 
 
 @dataclass(frozen=True)
-class VideoSettings:
-    """How the videos of a batch are cut and encoded (:func:`~omniwidget.io.video.warp_video`'s options)."""
+class BatchSettings:
+    """How every file of :func:`warp_files` is warped and written, and where an in-process batch runs.
 
+    Attributes
+    ----------
+    width : int, optional
+        Output width (even); default the input's (with a map, the map's).
+    order : {"nearest", "bilinear", "bicubic"}
+    fit : {"pad", "stretch"}, optional
+        Make each input 2:1 first (:func:`~omniwidget.io.images.to_equirectangular`); by
+        default an input that is not 2:1 fails.
+    workers : int, optional
+        Threads for an in-process run (default: CPUs + 1); a cluster has its own workers.
+    segment_seconds : float
+        About how long each time range of a video is (the ranges of one video are equal).
+        Each range starts with a key frame, so a shorter range costs a little more bit rate.
+    codec, crf, preset : optional
+        The videos' encoder settings (:class:`~omniwidget.app.video.VideoSettings`).
+    spherical : bool, optional
+        The videos' spherical metadata: the input's (None), the input's or plain
+        equirectangular (True), none (False).
+
+    Raises
+    ------
+    ValueError
+        A bad ``order``, ``fit``, ``width``, ``workers`` or ``segment_seconds``.
+    """
+
+    width: int | None = None
+    order: Order = "bilinear"
+    fit: Fit | None = None
+    workers: int | None = None
     segment_seconds: float = SEGMENT_SECONDS
     codec: str | None = None
     crf: int | None = None
     preset: str | None = None
     spherical: bool | None = None
+
+    def __post_init__(self) -> None:
+        from ..io.images import FITS
+        from ..raster.warping import ORDERS
+
+        seconds = self.segment_seconds
+        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not 0 < seconds < float("inf"):
+            raise ValueError(f"segment_seconds must be a positive number of seconds, got {seconds!r}")
+        if self.order not in ORDERS:
+            raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {self.order!r}")
+        if self.fit is not None and self.fit not in FITS:
+            raise ValueError(f"fit must be None or one of {', '.join(FITS)}, got {self.fit!r}")
+        width = self.width
+        if width is not None and (isinstance(width, bool) or not isinstance(width, (int, np.integer)) or width < 2 or width % 2):
+            raise ValueError(f"width must be an even integer of at least 2, got {width!r}")
+        if self.workers is not None and self.workers < 1:
+            raise ValueError(f"workers must be at least 1, got {self.workers!r}")
+
+    @property
+    def video(self) -> VideoSettings:
+        """What each time range of a video is warped with (:func:`~omniwidget.app.video.warp_video`)."""
+        return VideoSettings(order=self.order, codec=self.codec, crf=self.crf, preset=self.preset, spherical=self.spherical)
 
 
 @dataclass(frozen=True)
@@ -216,38 +269,33 @@ class _Recipe:
 
     handles: Handles | None
     inverse_map: NDArray[np.floating] | None
-    width: int | None
-    order: Order
-    fit: Fit | None
+    settings: BatchSettings
     digest: str  # names the handles or the map in the workers' caches
-    video: VideoSettings
+
+    @property
+    def width(self) -> int | None:
+        return None if self.settings.width is None else int(self.settings.width)
+
+    @property
+    def order(self) -> Order:
+        return self.settings.order
+
+    @property
+    def fit(self) -> Fit | None:
+        return self.settings.fit
 
 
-def _recipe(
-    handles: Any, inverse_map: Any, width: int | None, order: Order, fit: Fit | None, video: VideoSettings | None = None
-) -> _Recipe:
-    from ..io.frames import load_map, map_coordinates
-    from ..io.images import FITS
-    from ..raster.warping import ORDERS
-
-    video = video or VideoSettings()
-    seconds = video.segment_seconds
-    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not 0 < seconds < float("inf"):
-        raise ValueError(f"segment_seconds must be a positive number of seconds, got {seconds!r}")
+def _recipe(handles: Any, inverse_map: Any, settings: BatchSettings) -> _Recipe:
+    from ..io.frames import load_map
+    from .frames import map_coordinates
 
     if (handles is None) == (inverse_map is None):
         raise ValueError("give either handles= (a Handles document or a handles file) or map= (an inverse map or a .npy file)")
-    if order not in ORDERS:
-        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
-    if fit is not None and fit not in FITS:
-        raise ValueError(f"fit must be None or one of {', '.join(FITS)}, got {fit!r}")
-    if width is not None and (isinstance(width, bool) or not isinstance(width, (int, np.integer)) or width < 2 or width % 2):
-        raise ValueError(f"width must be an even integer of at least 2, got {width!r}")
-    width = None if width is None else int(width)
+    width = settings.width
     if handles is not None:
         doc = handles if isinstance(handles, Handles) else load_handles(handles)
         digest = hashlib.sha256(doc.to_json(indent=None).encode()).hexdigest()
-        return _Recipe(doc, None, width, order, fit, f"handles-{digest}", video)
+        return _Recipe(doc, None, settings, f"handles-{digest}")
     if isinstance(inverse_map, (str, os.PathLike)):
         m: NDArray[np.floating] = load_map(inverse_map)
     else:
@@ -256,7 +304,7 @@ def _recipe(
     if width is not None and width != m.shape[1]:
         raise ValueError(f"width={width}: the map makes outputs {m.shape[1]} wide")
     digest = hashlib.sha256(m.tobytes()).hexdigest()
-    return _Recipe(None, m, width, order, fit, f"map-{m.dtype.str}-{m.shape[0]}-{digest}", video)
+    return _Recipe(None, m, settings, f"map-{m.dtype.str}-{m.shape[0]}-{digest}")
 
 
 # --- on each worker (or in-process): the maps kept per size, one file's work -----------------
@@ -338,7 +386,7 @@ def _inverse_map(recipe: _Recipe, out_width: int, keep: bool) -> tuple[NDArray[n
 
 def _coordinates(recipe: _Recipe, src_width: int) -> tuple[NDArray[np.float32], tuple[str, ...], float]:
     """Source coordinates for inputs ``src_width`` wide, the warp's warnings, and the seconds this call spent making them."""
-    from ..io.frames import map_coordinates
+    from .frames import map_coordinates
 
     start = time.perf_counter()
     out_width = _output_width(recipe, src_width)
@@ -365,7 +413,7 @@ def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[
     out = remap_panorama(frame, coordinates, recipe.order)
     if make_folder:
         target.parent.mkdir(exist_ok=True)
-    # the input's metadata brought up to date, as omniwidget warp writes it (issue 34; --no-gpano is not sent to the workers)
+    # the input's metadata brought up to date, as omniwidget warp writes it (--no-gpano is not sent to the workers)
     levelled = recipe.handles is not None and recipe.handles.options.up is not None
     meta = output_metadata(read_metadata(source), out.shape[1], out.shape[0], levelled=levelled)
     write_image(target, out, meta)  # what a killed attempt left beside it is removed first (omniwidget._files)
@@ -417,7 +465,7 @@ def _warp_segment(
     recipe: _Recipe, src: str, src_width: int, seg: str, start: float | None, end: float | None, make_folder: bool
 ) -> tuple[float, float, tuple[str, ...]]:
     """Warp one time range of a video ``src_width`` wide into ``seg`` (video only, from a key frame); ``(seconds, map seconds, warnings)``."""
-    from ..io.video import warp_video
+    from .video import warp_video
 
     tick = time.perf_counter()
     target = Path(seg)
@@ -427,10 +475,7 @@ def _warp_segment(
     before = time.perf_counter()
     inverse_map, warnings = _inverse_map(recipe, out_width, keep=True)
     map_seconds = time.perf_counter() - before
-    v = recipe.video
-    warp_video(
-        src, target, inverse_map, order=recipe.order, codec=v.codec, crf=v.crf, preset=v.preset, spherical=False, start=start, end=end, audio=False
-    )
+    warp_video(src, target, inverse_map, settings=recipe.settings.video, spherical=False, start=start, end=end, audio=False)
     return time.perf_counter() - tick, map_seconds, warnings
 
 
@@ -438,7 +483,7 @@ def _join_segments(recipe: _Recipe, src: str, segs: Sequence[str], dst: str, don
     """Join a video's warped ranges into ``dst`` with the source's sound; the ranges' ``(seconds, map seconds, warnings)`` summed."""
     from ..io.video import join_video_segments
 
-    report = join_video_segments(segs, dst, source=src, spherical=recipe.video.spherical)
+    report = join_video_segments(segs, dst, source=src, spherical=recipe.settings.spherical)
     warnings = tuple(dict.fromkeys(w for d in done for w in d[2]))
     return report.seconds + sum(d[0] for d in done), sum(d[1] for d in done), warnings
 
@@ -516,19 +561,12 @@ def warp_files(
     outputs: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
     *,
     handles: Handles | str | os.PathLike[str] | None = None,
-    map: ArrayLike | str | os.PathLike[str] | None = None,  # the name the issue gives it (shadows the builtin here only)
+    map: ArrayLike | str | os.PathLike[str] | None = None,  # shadows the builtin here only: the word the command line uses (--map)
     client: Client | str | None = None,
     retries: int = 2,
-    width: int | None = None,
-    order: Order = "bilinear",
-    fit: Fit | None = None,
-    workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
-    segment_seconds: float = SEGMENT_SECONDS,
-    codec: str | None = None,
-    crf: int | None = None,
-    preset: str | None = None,
-    spherical: bool | None = None,
+    settings: BatchSettings | None = None,
+    **options: Any,
 ) -> BatchReport:
     """Warp many panoramas and 360° videos alike, each read and written by tasks of their own, here or on a Dask cluster.
 
@@ -537,7 +575,7 @@ def warp_files(
     inputs : sequence of path-like
         Equirectangular images (2:1, or any shape with ``fit``), of any sizes: each size
         gets its own map; and 360° videos (:func:`~omniwidget.io.video.is_video_path`),
-        each cut into time ranges of about ``segment_seconds``, one task per range, then
+        each cut into time ranges of about ``segment_seconds`` (:class:`BatchSettings`), one task per range, then
         joined without re-encoding, its sound copied from the input
         (:func:`~omniwidget.io.video.join_video_segments`). With a cluster, paths as the
         workers see them.
@@ -560,24 +598,14 @@ def warp_files(
     retries : int
         How many more times a file that fails is tried (a corrupt file fails every time; a
         network file system's hiccup may not).
-    width : int, optional
-        Output width (even); default the input's (with ``map``, the map's).
-    order : {"nearest", "bilinear", "bicubic"}
-    fit : {"pad", "stretch"}, optional
-        Make each input 2:1 first (:func:`~omniwidget.io.images.to_equirectangular`); by
-        default an input that is not 2:1 fails.
-    workers : int, optional
-        Threads for an in-process run (default: CPUs + 1); a cluster has its own workers.
     progress : callable, optional
         ``progress(done, total)``, called in the calling thread as each file finishes.
-    segment_seconds : float
-        About how long each time range of a video is (the ranges of one video are equal).
-        Each range starts with a key frame, so a shorter range costs a little more bit rate.
-    codec, crf, preset : optional
-        The videos' encoder settings (:func:`~omniwidget.io.video.warp_video`).
-    spherical : bool, optional
-        The videos' spherical metadata: the input's (None), the input's or plain
-        equirectangular (True), none (False).
+    settings : BatchSettings, optional
+        The output width, resampling and fit, the threads of an in-process run, and the
+        videos' ranges and encoder (:class:`BatchSettings`; its defaults by default).
+    **options
+        Fields of :class:`BatchSettings` by name (``width=2048``, ``workers=4``,
+        ``segment_seconds=30``, ``crf=20``, ...), replacing those of ``settings``.
 
     Returns
     -------
@@ -588,8 +616,10 @@ def warp_files(
     Raises
     ------
     ValueError
-        Neither or both of ``handles`` and ``map``; a bad ``order``, ``fit``, ``width`` or
-        ``retries``.
+        Neither or both of ``handles`` and ``map``; a bad ``retries``, or a bad setting
+        (:class:`BatchSettings`).
+    TypeError
+        An option that is no setting.
     OmniwidgetError
         The handles or map cannot be read; outputs that would collide, overwrite an input
         or have no image suffix (found before any work starts).
@@ -603,7 +633,7 @@ def warp_files(
     -----
     The outputs are the bytes ``omniwidget warp`` writes for several inputs on one machine:
     the inverse map of the output size, turned into source coordinates for the input's width
-    (:func:`~omniwidget.io.frames.map_coordinates`) and resampled with OpenCV. (For one
+    (:func:`~omniwidget.app.frames.map_coordinates`) and resampled with OpenCV. (For one
     input, ``omniwidget warp`` without ``--dask`` resamples by the blend's own coordinates,
     which differ from the map's in the last bits, so the bytes may differ slightly.) A
     video's output is the same bytes in-process and on a cluster (the same ranges, each
@@ -618,12 +648,11 @@ def warp_files(
     """
     if isinstance(retries, bool) or not isinstance(retries, (int, np.integer)) or retries < 0:
         raise ValueError(f"retries must be a non-negative integer, got {retries!r}")
-    if workers is not None and workers < 1:
-        raise ValueError(f"workers must be at least 1, got {workers!r}")
-    recipe = _recipe(handles, map, width, order, fit, VideoSettings(segment_seconds, codec, crf, preset, spherical))
+    recipe = _recipe(handles, map, _settings(settings, options))
     pairs, make_folder = _pairs(inputs, outputs, [("the handles file", handles), ("the map", map)])
     start = time.perf_counter()
     if client is None:
+        workers = recipe.settings.workers
         threads = (os.cpu_count() or 1) + 1 if workers is None else int(workers)
         try:
             files, warnings = _in_process(recipe, pairs, make_folder, int(retries), threads, progress)
@@ -632,6 +661,15 @@ def warp_files(
         return BatchReport(tuple(files), time.perf_counter() - start, None, threads, warnings)
     files, warnings, address, count = _on_cluster(recipe, pairs, make_folder, int(retries), client, progress)
     return BatchReport(tuple(files), time.perf_counter() - start, address, count, warnings)
+
+
+def _settings(settings: BatchSettings | None, options: dict[str, Any]) -> BatchSettings:
+    """``settings`` (default :class:`BatchSettings`) with the fields named in ``options`` replaced."""
+    names = {f.name for f in dataclasses.fields(BatchSettings)}
+    unknown = sorted(set(options) - names)
+    if unknown:
+        raise TypeError(f"warp_files() got unexpected keyword argument(s) {', '.join(unknown)}; its settings are {', '.join(sorted(names))}")
+    return dataclasses.replace(settings or BatchSettings(), **options)
 
 
 def _in_process(
@@ -653,7 +691,7 @@ def _in_process(
         raise AssertionError("unreachable")
 
     def video(src: Path, dst: Path) -> FileReport:
-        width, ranges = attempt(_plan_video, str(src), str(dst), recipe.video.segment_seconds)
+        width, ranges = attempt(_plan_video, str(src), str(dst), recipe.settings.segment_seconds)
         segs = [str(p) for p in _segment_paths(dst, len(ranges))]
         try:
             done = [attempt(_warp_segment, recipe, str(src), width, seg, a, b, make_folder) for seg, (a, b) in zip(segs, ranges, strict=True)]
@@ -737,7 +775,7 @@ def _on_cluster(
         pending = as_completed()
         for i, (src, dst) in enumerate(pairs):
             if is_video_path(src):
-                pending.add(submit(f"{prefix}-{i}-plan", i, "plan", _plan_video, str(src), str(dst), recipe.video.segment_seconds))
+                pending.add(submit(f"{prefix}-{i}-plan", i, "plan", _plan_video, str(src), str(dst), recipe.settings.segment_seconds))
             else:
                 pending.add(submit(f"{prefix}-{i}", i, "file", _warp_file, shared, str(src), str(dst), make_folder))
         files: list[FileReport | None] = [None] * len(pairs)

@@ -521,8 +521,9 @@ def _progress_bar(done: int, total: int, what: str = "frames") -> None:
 def _warp_frames(args: argparse.Namespace) -> None:
     from ..document.handles import load_handles
     from ..errors import ImageError
-    from ..io.frames import load_map, map_coordinates, warp_frames
+    from ..io.frames import load_map
     from ..io.images import check_format, read_panorama, write_image
+    from .frames import FrameSettings, map_coordinates, warp_frames
 
     outputs = _frame_outputs(args)
     handles = load_handles(args.handles) if args.handles is not None else None
@@ -550,12 +551,9 @@ def _warp_frames(args: argparse.Namespace) -> None:
         outputs,
         coordinates,
         first.shape[:2],
-        order=args.order,
+        FrameSettings(order=args.order, fit=args.fit, gpano=not args.no_gpano, levelled=handles is not None and handles.options.up is not None),
         workers=args.workers,
         progress=progress,
-        fit=args.fit,
-        gpano=not args.no_gpano,
-        levelled=handles is not None and handles.options.up is not None,
     )
     h, w = coordinates.shape[:2]
     where = str(outputs[0]) if len(outputs) == 1 else f"{args.output}{'' if str(args.output).endswith('/') else '/'}"
@@ -688,12 +686,13 @@ def _clock(seconds: float) -> str:
 
 
 def _warp_video(args: argparse.Namespace) -> None:
-    """One video to one video: the map once (from the first frame, or --apply-map), then every frame by it (omniwidget.io.video)."""
+    """One video to one video: the map once (from the first frame, or --apply-map), then every frame by it (omniwidget.app.video)."""
     from ..document.handles import load_handles
     from ..errors import ImageError
     from ..io.frames import load_map
     from ..io.images import write_image
-    from ..io.video import OUTPUT_SUFFIXES, VideoReader, warp_video
+    from ..io.video import OUTPUT_SUFFIXES, VideoReader
+    from .video import VideoSettings, warp_video
 
     if len(args.input) != 1:
         raise ImageError("a video is warped on its own: omniwidget warp INPUT.mp4 (-H handles.json | --apply-map MAP.npy) -o OUTPUT.mp4")
@@ -725,12 +724,9 @@ def _warp_video(args: argparse.Namespace) -> None:
             source,
             args.output,
             inverse_map,
-            order=args.order,
-            codec=args.codec,
-            crf=args.crf,
-            preset=args.preset,
-            spherical=True if args.spherical else None,
-            workers=args.workers,
+            settings=VideoSettings(
+                order=args.order, codec=args.codec, crf=args.crf, preset=args.preset, spherical=True if args.spherical else None, workers=args.workers
+            ),
             progress=progress,
         )
     finally:

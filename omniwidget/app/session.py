@@ -1361,7 +1361,7 @@ class EditingSession:
             _VIDEO_JOBS.discard((threading.current_thread(), cancel))
 
     def _save_video(self, doc: Handles, key: str, target: Path, cancel: threading.Event) -> None:
-        from ..io.video import VideoCancelled, warp_video
+        from .video import VideoCancelled, warp_video
 
         assert self._image_path is not None
         start = time.perf_counter()

@@ -1,37 +1,38 @@
-"""Many frames, one map: the frames of a 360° video from a still camera, warped alike.
+"""Inverse maps saved to files: read and checked.
 
-The map (for each output pixel, the input ``[lon, lat]`` it shows: ``Result.inverse_map()``,
-or a map saved by ``omniwidget warp --map``) is turned into source pixel coordinates once
-(:func:`map_coordinates`); each frame is then only read, resampled (:func:`cv2.remap`) and
-written. :func:`warp_frames` does that on a few threads: OpenCV's decoders, encoders and
-``remap`` release the GIL, so reading one frame, resampling another and writing a third
-overlap.
+A map holds, for each output pixel, the input ``[lon, lat]`` in degrees it shows
+(``Result.inverse_map()``, or a map saved by ``omniwidget warp --map``). :func:`load_map`
+reads one back; :func:`checked_map` says what is wrong with an array that is not one.
+Applying a map to many frames is :mod:`omniwidget.app.frames`.
 """
 
 from __future__ import annotations
 
 import os
-import time
-from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._files import refuse_overwrites, remove_leftovers
-from ..errors import ImageError, OmniwidgetError
-from ..raster.warping import ORDERS, PAD, Order, remap_panorama
-from ..sphere import coords
-from .images import Fit, check_fits, read_panorama, write_image
-from .metadata import output_metadata, read_metadata
+from ..errors import ImageError
+from .images import check_fits
 
-__all__ = ["FrameReport", "load_map", "map_coordinates", "warp_frames"]
+__all__ = ["checked_map", "load_map"]
 
 
-def _checked_map(inverse_map: ArrayLike) -> NDArray[np.floating]:
-    """``inverse_map`` as an array, if it is a map of ``[lon, lat]`` degrees; else an ImageError saying what is wrong."""
+def checked_map(inverse_map: ArrayLike) -> NDArray[np.floating]:
+    """``inverse_map`` as an array, if it is a map of ``[lon, lat]`` degrees; else an ImageError saying what is wrong.
+
+    Parameters
+    ----------
+    inverse_map : array_like, shape (H, 2H, 2)
+        Finite floating-point ``[lon, lat]`` degrees: latitudes in [-90, 90], longitudes in [-360, 360].
+
+    Raises
+    ------
+    ImageError
+        The shape, the type or the values are not a map's.
+    """
     m = np.asarray(inverse_map)
     if m.ndim != 3 or m.shape[2] != 2 or m.shape[1] != 2 * m.shape[0] or m.shape[0] < 1:
         raise ImageError(f"a map must have shape (H, 2H, 2) of [lon, lat] degrees, got {m.shape}")
@@ -40,33 +41,6 @@ def _checked_map(inverse_map: ArrayLike) -> NDArray[np.floating]:
     if np.abs(m[..., 1]).max() > 90.0 + 1e-4 or np.abs(m[..., 0]).max() > 360.0:
         raise ImageError("a map's latitudes must lie in [-90, 90] and its longitudes in [-360, 360] degrees")
     return m
-
-
-def map_coordinates(inverse_map: ArrayLike, src_width: int) -> NDArray[np.float32]:
-    """Source pixel coordinates of an inverse map, ready for :func:`~omniwidget.raster.warping.remap_panorama`.
-
-    Parameters
-    ----------
-    inverse_map : array_like, shape (H, 2H, 2)
-        For each output pixel centre, the input ``[lon, lat]`` in degrees it shows.
-    src_width : int
-        Width of the frames the map is applied to (any even width: the map is in degrees).
-
-    Returns
-    -------
-    ndarray of float32, shape (H, 2H, 2)
-        ``(x, y)`` in the source padded by :data:`~omniwidget.raster.warping.PAD`
-        (:func:`~omniwidget.raster.warping.pad_panorama`).
-
-    Raises
-    ------
-    ImageError
-        If the map has the wrong shape or holds non-finite or out-of-range values.
-    """
-    m = _checked_map(inverse_map)
-    px = coords.lonlat_to_px(np.asarray(m, np.float64).reshape(-1, 2), src_width).reshape(m.shape)
-    px[..., 0] = np.mod(px[..., 0] + 0.5, src_width) - 0.5  # longitudes wrap; the padding covers the rest
-    return (px + PAD).astype(np.float32)
 
 
 def load_map(path: str | os.PathLike[str]) -> NDArray[np.float32]:
@@ -93,127 +67,7 @@ def load_map(path: str | os.PathLike[str]) -> NDArray[np.float32]:
     except (OSError, ValueError) as exc:
         raise ImageError(f"{path}: cannot read the map ({exc})") from None
     try:
-        _checked_map(m)
+        checked_map(m)
     except ImageError as exc:
         raise ImageError(f"{path}: {exc}") from None
     return np.asarray(m, np.float32)
-
-
-@dataclass(frozen=True)
-class FrameReport:
-    """What :func:`warp_frames` did.
-
-    Attributes
-    ----------
-    written : tuple of Path
-        Outputs written, in the order of the inputs.
-    failed : tuple of (Path, str)
-        Inputs that could not be warped, and why; their outputs were not written.
-    seconds : float
-        Wall time of the whole run (reading, resampling, writing).
-    """
-
-    written: tuple[Path, ...]
-    failed: tuple[tuple[Path, str], ...]
-    seconds: float
-
-    @property
-    def fps(self) -> float:
-        """Frames written per second of wall time."""
-        return len(self.written) / self.seconds if self.seconds > 0 else float("inf")
-
-
-def warp_frames(
-    inputs: Sequence[str | os.PathLike[str]],
-    outputs: Sequence[str | os.PathLike[str]],
-    coordinates: NDArray[np.float32],
-    src_shape: tuple[int, int],
-    *,
-    order: Order = "bilinear",
-    workers: int | None = None,
-    progress: Callable[[int, int], None] | None = None,
-    fit: Fit | None = None,
-    gpano: bool = True,
-    levelled: bool = False,
-) -> FrameReport:
-    """Warp many frames by one map: read, resample, write, a few frames at a time.
-
-    Parameters
-    ----------
-    inputs, outputs : sequences of path-like, the same length
-        Each input frame and where its warped frame goes (written whole or not at all).
-    coordinates : ndarray of float32, shape (h, w, 2)
-        From :func:`map_coordinates` for frames of ``src_shape``.
-    src_shape : (int, int)
-        ``(height, width)`` every frame must have.
-    order : {"nearest", "bilinear", "bicubic"}
-    workers : int, optional
-        Threads; default one per CPU plus one (reading and writing wait on the disk).
-    progress : callable, optional
-        ``progress(done, total)``, called from the calling thread after each frame.
-    fit : {"pad", "stretch"}, optional
-        Make each frame 2:1 first (:func:`~omniwidget.io.images.to_equirectangular`); by
-        default a frame that is not 2:1 fails.
-    gpano : bool
-        Write the Photo Sphere XMP into frames whose input has none (each frame's own
-        metadata is always carried: :func:`omniwidget.io.metadata.output_metadata`).
-    levelled : bool
-        The map levels the frames: their GPano pitch and roll are written 0.
-
-    Returns
-    -------
-    FrameReport
-        A frame that cannot be read, has another size or cannot be written is listed in
-        ``failed`` with the reason; the others are still warped.
-
-    Raises
-    ------
-    ImageError
-        Before any work, if an output names an input or another output (the same path, a
-        symbolic or a hard link).
-    KeyboardInterrupt
-        Passed on once the frames being warped are written (the others are not started);
-        no temporary file is left.
-
-    Notes
-    -----
-    What killed runs left beside the outputs (hidden temporary files no live run holds) is
-    removed first, each folder listed once.
-    """
-    if len(inputs) != len(outputs):
-        raise ValueError(f"{len(inputs)} inputs but {len(outputs)} outputs")
-    if order not in ORDERS:
-        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
-    workers = (os.cpu_count() or 1) + 1 if workers is None else max(1, int(workers))
-
-    def one(pair: tuple[Path, Path]) -> str | None:
-        src, dst = pair
-        try:
-            frame = read_panorama(src, fit)
-            if frame.shape[:2] != tuple(src_shape):
-                raise ImageError(f"{src}: the frame is {frame.shape[1]} x {frame.shape[0]}, the map is for {src_shape[1]} x {src_shape[0]}")
-            warped = remap_panorama(frame, coordinates, order)
-            meta = output_metadata(read_metadata(src), warped.shape[1], warped.shape[0], gpano=gpano, levelled=levelled)
-            write_image(dst, warped, meta)
-        except (OmniwidgetError, OSError) as exc:
-            return str(exc)
-        return None
-
-    pairs = [(Path(i), Path(o)) for i, o in zip(inputs, outputs, strict=True)]
-    refuse_overwrites([("the input", src) for src, _ in pairs], [("the output", dst) for _, dst in pairs])
-    remove_leftovers(*(dst for _, dst in pairs))
-    written: list[Path] = []
-    failed: list[tuple[Path, str]] = []
-    start = time.perf_counter()
-    pool = ThreadPoolExecutor(workers)
-    try:
-        for done, ((src, dst), error) in enumerate(zip(pairs, pool.map(one, pairs), strict=True), start=1):
-            if error is None:
-                written.append(dst)
-            else:
-                failed.append((src, error))
-            if progress is not None:
-                progress(done, len(pairs))
-    finally:  # interrupted: the frames not started are dropped, not warped while the process waits to end
-        pool.shutdown(wait=True, cancel_futures=True)
-    return FrameReport(tuple(written), tuple(failed), time.perf_counter() - start)

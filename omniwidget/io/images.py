@@ -425,9 +425,8 @@ def _read_npy(path: Path, data: bytes, header: ImageHeader | None) -> NDArray:
 
 #: Bytes a warp holds per output pixel besides the output image itself, at the command line's
 #: peak: the resampling's float32 coordinates (8), then the closing line's check of the lines
-#: through the placed map (float64 [lon, lat], 16, and its intermediates). Measured with
-#: bench/bench_limits.py pixels: 42 bytes per output pixel with the RGB pixel, 12000 x 6000
-#: against 12000 to 6000 wide (bench/RESULTS.md, "Limits (issue 35)").
+#: through the placed map (float64 [lon, lat], 16, and its intermediates). Checked against the
+#: measured peak by bench/bench_limits.py (its figures in bench/RESULTS.md).
 WARP_BYTES_PER_PIXEL = 40
 #: Bytes a warp in strips holds per pixel of its strip (the interpolated unit vectors and their four corners, float32).
 STRIP_BYTES_PER_PIXEL = 96
@@ -762,11 +761,9 @@ def memory_needed(path: str | os.PathLike[str], *, warp: bool = False, width: in
     warp holds :data:`WARP_INPUT_COPIES` copies of the input (it, and its padded copy being
     made) and per output pixel :data:`WARP_BYTES_PER_PIXEL` bytes of working arrays besides
     the output pixel itself: ``3 * decode_bytes + W_out * W_out / 2 * (40 + bytes_per_pixel)``.
-    The figures were measured on the command line's peak (bench/RESULTS.md, "Limits (issue
-    35)"): the estimate is 7 to 15% above it for warps to the input's width from 2048 to
-    12000 (the three copies of the input and the per-pixel arrays are not all held at
-    once), up to 50% above for a warp to half the width; the Python process itself (about
-    150 MB) is not counted. A file is counted at the size it is decoded at for ``width``
+    The estimate is meant to lie above the command line's peak (the three copies of the
+    input and the per-pixel arrays are not all held at once; bench/bench_limits.py measures
+    it, its figures in bench/RESULTS.md); the Python process itself is not counted. A file is counted at the size it is decoded at for ``width``
     (:func:`omniwidget.io.large.plan_read`: a JPEG reduced by libjpeg, another file above
     :data:`~omniwidget.io.large.STREAM_BYTES` reduced in strips); a panorama resampled in
     tiles (32,767 px a side or more, :func:`~omniwidget.raster.warping.remap_panorama`)

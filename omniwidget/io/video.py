@@ -1,72 +1,70 @@
-"""360° video files: read frames, and warp a whole video by one map, its sound and metadata kept.
+"""360° video files: read them, decode them for a transcode, and write them, their sound and metadata kept.
 
 Needs PyAV (``pip install 'omniwidget[video]'``; its wheels bring FFmpeg's libraries).
 
 - :func:`probe_video` what a file holds (:class:`VideoInfo`): size, frames, rate, time base,
   duration, pixel format and depth, audio streams, spherical metadata.
 - :class:`VideoReader` frames as RGB arrays, by number or by time, for the editor (it seeks).
-- :func:`warp_video` the whole video through one map, as ``omniwidget warp IN.mp4 ... -o OUT.mp4``
-  does: the map is computed once (from the first frame with :func:`~omniwidget.raster.pipeline.warp`,
-  or given), turned into source pixel coordinates once
-  (:func:`~omniwidget.io.frames.map_coordinates`), and every frame is then only decoded,
-  resampled (:func:`~omniwidget.raster.warping.remap_panorama`) and encoded. Time stamps, frame rate and
-  duration are kept, audio streams are copied packet for packet (not re-encoded), and the
-  spherical metadata is carried over (:mod:`omniwidget.io.spherical`). The output is written
-  to a temporary file next to it and renamed at the end: an error, a cancel or Ctrl+C leaves
-  no file under its name.
+- :class:`VideoDecoder` the frames and audio packets of a whole video (or of a time range:
+  :func:`time_range`) in the order the file stores them, for a transcode.
+- :class:`VideoEncoder` a video written as frames come: the encoder :func:`choose_encoding`
+  picks, the time base, colour and language of the source, its audio streams copied packet
+  for packet (not re-encoded) and its container metadata kept; :func:`video_output` the
+  temporary file it is written to, renamed over the output at the end (an error, a cancel or
+  Ctrl+C leaves no file under its name), and :func:`spherical_to_write` the spherical
+  metadata carried over (:mod:`omniwidget.io.spherical`).
+- :func:`join_video_segments` videos warped range by range joined without re-encoding.
 
-Speed. Decoding, resampling and encoding overlap on threads (FFmpeg's decoders and encoders
-and OpenCV's ``remap`` release the GIL; the decoder and libx264 run their own threads too).
-A ``yuv420p`` (or ``yuv420p10le``) video is resampled plane by plane without a colour
-conversion: the luma plane with the map's coordinates, the two half-size chroma planes with
-the map at half resolution (each chroma pixel's four luma directions averaged on the sphere),
-so a frame costs about 1.5 single-channel remaps. Other pixel formats are converted to RGB
-(48-bit for deeper than 8 bits), resampled, and converted back.
+Warping a whole video by one map is :func:`omniwidget.app.video.warp_video`, over these.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import queue
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-from .._files import commit, remove_leftovers, same_file, temporary_file
+from .._files import AtomicOutput, atomic_output, same_file
 from ..errors import VideoError
-from ..raster.warping import ORDERS, Order, remap_panorama
-from .frames import map_coordinates
 from .spherical import EQUIRECTANGULAR, Spherical, check_mp4_structure, read_spherical, write_spherical
 
 if TYPE_CHECKING:
     import av.container
     from av.video.stream import VideoStream
 
-    from ..document.handles import Handles
-
 __all__ = [
     "INPUT_SUFFIXES",
     "OUTPUT_SUFFIXES",
+    "PLANE_FORMATS",
     "TEMPORARY_SUFFIX",
-    "VideoCancelled",
+    "Encoding",
+    "VideoDecoder",
+    "VideoEncoder",
     "VideoInfo",
     "VideoReader",
     "VideoReport",
+    "check_complete",
+    "check_output",
+    "choose_encoding",
     "default_codec",
-    "half_resolution_map",
+    "frame_from_rgb",
+    "frame_plane",
     "is_video_path",
     "join_video_segments",
+    "new_frame",
     "probe_video",
-    "warp_video",
+    "spherical_to_write",
+    "time_range",
+    "video_output",
 ]
 
 #: File names read as videos by the command line (the content decides what FFmpeg makes of them).
@@ -75,7 +73,7 @@ INPUT_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv", ".webm", ".avi", ".mts", ".m2t
 OUTPUT_SUFFIXES = (".mp4", ".m4v", ".mov")
 #: The end of the temporary file's name a video is written to before it is renamed
 #: (``.NAME.``, eight random hex digits, ``.part``; locked while it is written, and removed by the next warp
-#: of ``NAME`` if a killed run left it: ``omniwidget._files.remove_leftovers``).
+#: of ``NAME`` if a killed run left it: :func:`omniwidget._files.remove_leftovers`).
 TEMPORARY_SUFFIX = ".part"
 #: Pixel formats resampled plane by plane, and the format they are written in.
 PLANE_FORMATS = {"yuv420p": "yuv420p", "yuvj420p": "yuv420p", "yuv420p10le": "yuv420p10le"}
@@ -86,15 +84,6 @@ DEFAULT_CRF = {"libx264": 18, "libx265": 20, "libsvtav1": 30}
 DEFAULT_PRESET = {"libx264": "medium", "libx265": "medium"}
 #: Container metadata the muxer writes itself (not copied from the input).
 _OWN_METADATA = {"major_brand", "minor_version", "compatible_brands", "encoder"}
-
-#: ``progress(done, total)``: frames encoded so far and the expected count (None if unknown);
-#: return False to cancel.
-Progress = Callable[[int, "int | None"], "bool | None"]
-
-
-class VideoCancelled(Exception):
-    """:func:`warp_video` stopped because it was asked to (``cancel`` set, or ``progress`` returned False); no output was written."""
-
 
 def _av() -> Any:
     """PyAV, or a VideoError saying how to install it."""
@@ -160,7 +149,7 @@ class VideoInfo:
         The codec of each audio stream, in order.
     others : tuple of str
         Streams that are neither the video nor audio (subtitles, data, a second video): they
-        are not copied by :func:`warp_video`.
+        are not copied by a warp (:func:`omniwidget.app.video.warp_video`).
     spherical : Spherical or None
         The spherical metadata, when the file has some.
     """
@@ -524,70 +513,12 @@ class VideoReader:
         return self._current
 
 
-# --- warping a whole video ---------------------------------------------------------------------
-
-
-def half_resolution_map(inverse_map: ArrayLike) -> NDArray[np.float32]:
-    """An inverse map at half resolution: each 2 x 2 block's directions averaged on the sphere.
-
-    The chroma planes of 4:2:0 video have a pixel per 2 x 2 block of luma pixels; this is
-    the map they are resampled with.
-
-    Parameters
-    ----------
-    inverse_map : array_like, shape (H, W, 2)
-        ``[lon, lat]`` degrees per output pixel; ``H`` and ``W`` even.
-
-    Returns
-    -------
-    ndarray of float32, shape (H / 2, W / 2, 2)
-        ``[lon, lat]`` degrees, the normalised mean of each block's four unit vectors.
-    """
-    m = np.asarray(inverse_map)
-    h, w = m.shape[:2]
-    if h % 2 or w % 2:
-        raise ValueError(f"a map of {w} x {h} has no half resolution")
-    out = np.empty((h // 2, w // 2, 2), np.float32)
-    block = 128  # output rows at a time: a few MB of float32
-    for r in range(0, h // 2, block):
-        rows = slice(2 * r, 2 * min(r + block, h // 2))
-        lon = np.radians(m[rows, :, 0], dtype=np.float32)  # float32 trigonometry: 1e-4 px at 4096 wide, twice as fast
-        lat = np.radians(m[rows, :, 1], dtype=np.float32)
-        cos_lat = np.cos(lat)
-        sums = []
-        for v in (cos_lat * np.cos(lon), cos_lat * np.sin(lon), np.sin(lat)):
-            sums.append(v[0::2, 0::2] + v[0::2, 1::2] + v[1::2, 0::2] + v[1::2, 1::2])
-        x, y, z = sums
-        out[r : r + x.shape[0], :, 0] = np.degrees(np.arctan2(y, x))
-        out[r : r + x.shape[0], :, 1] = np.degrees(np.arctan2(z, np.hypot(x, y)))
-    return out
-
-
-def _encoder_formats(name: str) -> tuple[str, ...] | None:
-    """Pixel formats encoder ``name`` takes, () if it says none, None if there is no such encoder."""
-    av = _av()
-    try:
-        codec = av.codec.Codec(name, "w")
-    except (av.FFmpegError, ValueError):
-        return None
-    if codec.type != "video":
-        return None
-    return tuple(f.name for f in (codec.video_formats or ()))
-
-
-def default_codec(bits: int) -> str:
-    """The encoder used by default: libx264 for 8-bit video; libx265 (else libx264) for deeper video, in 10 bits."""
-    if bits <= 8:
-        return "libx264"
-    for name in ("libx265", "libx264"):
-        if "yuv420p10le" in (_encoder_formats(name) or ()):
-            return name
-    raise VideoError("this FFmpeg has no encoder for 10-bit video (libx265 or a 10-bit libx264)")
+# --- what was written ----------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
 class VideoReport:
-    """What :func:`warp_video` did.
+    """What a video written whole held: by a warp (:func:`omniwidget.app.video.warp_video`) or :func:`join_video_segments`.
 
     Attributes
     ----------
@@ -637,115 +568,232 @@ class VideoReport:
         return self.frames / self.seconds if self.seconds > 0 else float("inf")
 
 
-def _plane(frame: Any, index: int, dtype: type[np.generic]) -> NDArray:
-    """A frame's plane as a (height, width) view of its buffer (rows padded to ``line_size``)."""
-    plane = frame.planes[index]
-    item = np.dtype(dtype).itemsize
-    return np.frombuffer(plane, dtype).reshape(plane.height, plane.line_size // item)[:, : plane.width]
+
+# --- decoding a whole video, for a transcode ---------------------------------------------------
 
 
-class _Warper:
-    """Resamples decoded frames into new frames ready for the encoder (called on worker threads)."""
-
-    def __init__(
-        self, inverse_map: NDArray, src_size: tuple[int, int], pix_fmt: str, out_format: str, order: Order, color: dict[str, int]
-    ) -> None:
-        src_w, src_h = src_size
-        self.out_h, self.out_w = inverse_map.shape[:2]
-        self.order = order
-        self.out_format = out_format
-        self.color = color
-        self.deep = out_format.endswith("10le")
-        self.planes = pix_fmt in PLANE_FORMATS and src_h % 2 == 0
-        self.luma = map_coordinates(inverse_map, src_w)
-        self.chroma = map_coordinates(half_resolution_map(inverse_map), src_w // 2) if self.planes else None
-
-    def __call__(self, frame: Any) -> Any:
-        av = _av()
-        if self.planes:
-            dtype = np.uint16 if self.deep else np.uint8
-            out = av.VideoFrame(self.out_w, self.out_h, self.out_format)
-            for k in range(3):
-                coordinates = self.chroma if k and self.chroma is not None else self.luma
-                _plane(out, k, dtype)[...] = remap_panorama(_plane(frame, k, dtype), coordinates, self.order)
-        else:
-            rgb_format = "rgb48le" if self.deep else "rgb24"
-            rgb = frame.to_ndarray(format=rgb_format, src_color_range=frame.color_range)
-            warped = np.ascontiguousarray(remap_panorama(rgb, self.luma, self.order))
-            out = av.VideoFrame.from_ndarray(warped, format=rgb_format).reformat(
-                format=self.out_format,
-                dst_colorspace=self.color["colorspace"] or None,
-                dst_color_range=self.color["color_range"] or None,
-            )
-        out.pts = frame.pts
-        out.time_base = frame.time_base
-        out.duration = frame.duration
-        for name, value in self.color.items():  # the encoder takes them from its context; the frame says them too
-            if hasattr(out, name):  # PyAV before 16 has no primaries or transfer on frames
-                setattr(out, name, value)
-        return out
+def time_range(start: float | None, end: float | None) -> tuple[Fraction, Fraction] | None:
+    """``(start, end)`` as exact fractions of a second (an open end is infinitely far), or None for the whole video."""
+    if start is None and end is None:
+        return None
+    far = Fraction(10**18)  # an open end: further than any video goes
+    for name, value in (("start", start), ("end", end)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, Fraction)) or not np.isfinite(float(value))):
+            raise ValueError(f"{name} must be a finite number of seconds or None, got {value!r}")
+    lo = -far if start is None else Fraction(start)
+    hi = far if end is None else Fraction(end)
+    if not lo < hi:
+        raise ValueError(f"the range's start ({start} s) must come before its end ({end} s)")
+    return lo, hi
 
 
-_opencv_lock = threading.Lock()
-_opencv_users = [0, 0]  # warps running, OpenCV's thread count before the first
+def _time_base(thing: Any) -> Fraction:
+    """The time base of a stream, packet or frame (FFmpeg always sets one on what it reads)."""
+    time_base = thing.time_base
+    if time_base is None:
+        raise VideoError(f"{thing}: no time base: its time stamps mean nothing")
+    return Fraction(time_base)
 
 
-@contextlib.contextmanager
-def _opencv_single_threaded() -> Iterator[None]:
-    """OpenCV on one thread while videos are warped (restored when the last one ends).
+def _move(packet: Any, seconds: Fraction) -> None:
+    """Move a packet ``seconds`` earlier (a range's output starts at 0)."""
+    offset = round(seconds / _time_base(packet))
+    packet.pts -= offset
+    if packet.dts is not None:
+        packet.dts -= offset
 
-    The frames are resampled on the warp's own threads; OpenCV's pool on top of them
-    busy-waits between calls, and took about 8% of the CPU time of a 2048 x 1024 transcode
-    (``bench/bench_video.py``). The setting is OpenCV's, for the whole process.
+
+class _Cut:
+    """A time range cut out of a video: which frames and audio packets fall in it, moved to start at 0.
+
+    The audio packets met before the range's first frame wait for it, since that frame says
+    how far everything is moved.
     """
-    import cv2
 
-    with _opencv_lock:
-        if _opencv_users[0] == 0:
-            _opencv_users[1] = cv2.getNumThreads()
-            cv2.setNumThreads(1)
-        _opencv_users[0] += 1
-    try:
-        yield
-    finally:
-        with _opencv_lock:
-            _opencv_users[0] -= 1
-            if _opencv_users[0] == 0:
-                cv2.setNumThreads(_opencv_users[1])
+    def __init__(self, span: tuple[Fraction, Fraction], path: Path) -> None:
+        self.start, self.end = span
+        self.path = path
+        self.shift: Fraction | None = None  # seconds taken off the time stamps
+        self.waiting: list[Any] = []
+        self.past = False  # a frame at or after the end was met
+
+    def audio(self, packet: Any) -> list[Any]:
+        """The packets to hand on now for ``packet``: none outside the range or before its first frame, else it, moved."""
+        if not self.start <= packet.pts * _time_base(packet) < self.end:
+            return []
+        if self.shift is None:
+            self.waiting.append(packet)
+            return []
+        _move(packet, self.shift)
+        return [packet]
+
+    def frame(self, frame: Any, count: int) -> list[Any] | None:
+        """None if ``frame`` lies outside the range; else the waiting audio packets to hand on before it (the frame moved)."""
+        if frame.pts is None:
+            raise VideoError(f"{self.path}: frame {count} has no time stamp, so it cannot be placed in a range")
+        when = frame.pts * _time_base(frame)
+        if when >= self.end:
+            self.past = True
+        if when < self.start or self.past:
+            return None
+        early: list[Any] = []
+        if self.shift is None:
+            self.shift = when
+            for packet in self.waiting:
+                _move(packet, when)
+            early, self.waiting = self.waiting, []
+        frame.pts -= round(self.shift / _time_base(frame))
+        return early
 
 
-def _put(q: queue.Queue[Any], item: Any, stop: threading.Event) -> bool:
-    """Put ``item`` unless ``stop`` is set first; whether it was put."""
-    while not stop.is_set():
+class VideoDecoder:
+    """A video's frames and audio packets in the order the file stores them: what a transcode reads.
+
+    Opens the file at once (as :func:`open` does; use it in a ``with`` statement). The first
+    video stream is decoded on FFmpeg's threads; the audio packets come as they are stored,
+    to be copied, not decoded.
+
+    Parameters
+    ----------
+    info : VideoInfo
+        From :func:`probe_video`.
+    audio : bool
+        Hand on the audio packets too (default).
+
+    Attributes
+    ----------
+    info : VideoInfo
+    stream : av.video.stream.VideoStream
+        The video stream decoded.
+    audio : list of av.audio.stream.AudioStream
+        The audio streams handed on (none with ``audio=False``).
+    """
+
+    def __init__(self, info: VideoInfo, *, audio: bool = True) -> None:
+        self.info = info
+        self.container = _open_input(info.path)
         try:
-            q.put(item, timeout=0.1)
-            return True
-        except queue.Full:
-            continue
-    return False
+            self.stream = _video_stream(self.container, info.path)
+            self.audio = list(self.container.streams.audio) if audio else []
+        except BaseException:
+            self.container.close()
+            raise
+
+    def __enter__(self) -> VideoDecoder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.container.close()
+
+    @property
+    def color(self) -> dict[str, int]:
+        """The video stream's colour space, range, primaries and transfer, as FFmpeg numbers them (the encoder writes the same)."""
+        ctx = self.stream.codec_context
+        color = {
+            "colorspace": int(ctx.colorspace),
+            "color_range": int(ctx.color_range),
+            "color_primaries": int(ctx.color_primaries),
+            "color_trc": int(ctx.color_trc),
+        }
+        if self.info.pix_fmt == "yuvj420p":
+            color["color_range"] = 2  # full range, said by the flag rather than the deprecated pixel format
+        return color
+
+    @property
+    def metadata(self) -> dict[str, str]:
+        """The container's metadata a copy keeps (not what the muxer writes itself)."""
+        return {k: v for k, v in self.container.metadata.items() if k not in _OWN_METADATA}
+
+    def items(self, span: tuple[Fraction, Fraction] | None = None) -> Iterator[tuple[Literal["audio", "video"], Any]]:
+        """``("audio", packet)`` and ``("video", frame)`` in stored order, the frames checked to keep the first one's size and format.
+
+        Parameters
+        ----------
+        span : (Fraction, Fraction), optional
+            Only what is shown from ``span[0]`` up to, not including, ``span[1]`` seconds
+            (:func:`time_range`), its time stamps moved to start at 0; decoding starts at the
+            key frame before it.
+
+        Raises
+        ------
+        VideoError
+            The file or its video stream is broken (naming the frame after which), a frame's
+            size or pixel format changes, or a frame of a range has no time stamp.
+        """
+        av = _av()
+        self.stream.thread_type = "AUTO"
+        cut = None if span is None else _Cut(span, self.info.path)
+        if span is not None:  # from the key frame before the range's start
+            self.container.seek(max(0, int(span[0] / _time_base(self.stream))), stream=self.stream, backward=True)
+        count = 0
+        try:
+            for packet in self.container.demux(self.stream, *self.audio):
+                if packet.stream.type == "audio":
+                    if packet.size and packet.pts is not None:
+                        yield from (("audio", p) for p in (cut.audio(packet) if cut is not None else [packet]))
+                    continue
+                for frame in self._decode(packet, count):
+                    early = cut.frame(frame, count) if cut is not None else []
+                    if early is None:
+                        continue
+                    yield from (("audio", p) for p in early)
+                    self._check_frame(frame, count)
+                    yield "video", frame
+                    count += 1
+                if cut is not None and cut.past:  # the decoder gives frames in the order they are shown: the range is done
+                    break
+        except av.FFmpegError as exc:
+            raise VideoError(f"{self.info.path}: the file is broken after frame {count} ({_ffmpeg_reason(exc)})") from None
+
+    def _decode(self, packet: Any, count: int) -> list[Any]:
+        av = _av()
+        try:
+            return list(self.stream.decode(packet))
+        except av.FFmpegError as exc:
+            raise VideoError(f"{self.info.path}: the video stream is broken after frame {count} ({_ffmpeg_reason(exc)})") from None
+
+    def _check_frame(self, frame: Any, count: int) -> None:
+        info = self.info
+        if (frame.width, frame.height) != (info.width, info.height):
+            raise VideoError(f"{info.path}: frame {count} is {frame.width} x {frame.height}, the first ones {info.width} x {info.height}")
+        if frame.format.name != info.pix_fmt:
+            raise VideoError(f"{info.path}: frame {count} is {frame.format.name}, the first ones {info.pix_fmt}")
 
 
-def _check_destination(source: Path, destination: Path) -> str:
-    if destination.suffix.lower() not in OUTPUT_SUFFIXES:
-        raise VideoError(f"{destination}: the output video must end in {', '.join(OUTPUT_SUFFIXES)}")
-    if not destination.parent.is_dir():
-        raise VideoError(f"{destination}: the folder {destination.parent} does not exist")
-    if same_file(destination, source):
-        raise VideoError(f"{destination}: the output would overwrite the input {source}; choose another file")
-    return "mov" if destination.suffix.lower() == ".mov" else "mp4"
+def check_complete(info: VideoInfo, frames: int, last_end: float | None) -> None:
+    """Refuse a video that ended early: fewer frames than its header says and short of its duration by more than two frames."""
+    if frames == 0:
+        raise VideoError(f"{info.path}: the video stream has no frames")
+    interval = float(1 / info.rate) if info.rate else 1 / 30
+    short_in_time = info.duration is not None and last_end is not None and last_end < info.start + info.duration - 2 * interval
+    if (info.frames is not None and frames < info.frames and (short_in_time or last_end is None)) or (info.frames is None and short_in_time):
+        said = f"{info.frames} frames" if info.frames else f"{info.duration:.2f} s"
+        raise VideoError(f"{info.path}: the video stream ends after {frames} frame(s), though the file says {said}; it looks truncated or damaged")
 
 
-def _temporary_file(destination: Path) -> tuple[int, Path]:
-    """A new empty file next to ``destination``, hidden, named after it (``.out.mp4.1a2b3c4d.part``), and its locked descriptor.
+# --- writing a video ---------------------------------------------------------------------------
 
-    What a killed run left beside ``destination`` is removed first. Made with the permissions
-    a new file gets (``0o666`` less the umask), as the output will have them after the rename.
-    """
-    remove_leftovers(destination)
+
+def _encoder_formats(name: str) -> tuple[str, ...] | None:
+    """Pixel formats encoder ``name`` takes, () if it says none, None if there is no such encoder."""
+    av = _av()
     try:
-        return temporary_file(destination, TEMPORARY_SUFFIX)
-    except OSError as exc:
-        raise VideoError(f"{destination}: cannot make a temporary file next to it ({exc.strerror or exc})") from None
+        codec = av.codec.Codec(name, "w")
+    except (av.FFmpegError, ValueError):
+        return None
+    if codec.type != "video":
+        return None
+    return tuple(f.name for f in (codec.video_formats or ()))
+
+
+def default_codec(bits: int) -> str:
+    """The encoder used by default: libx264 for 8-bit video; libx265 (else libx264) for deeper video, in 10 bits."""
+    if bits <= 8:
+        return "libx264"
+    for name in ("libx265", "libx264"):
+        if "yuv420p10le" in (_encoder_formats(name) or ()):
+            return name
+    raise VideoError("this FFmpeg has no encoder for 10-bit video (libx265 or a 10-bit libx264)")
 
 
 def _encoder_options(codec: str, crf: int | None, preset: str | None) -> dict[str, str]:
@@ -765,128 +813,43 @@ def _encoder_options(codec: str, crf: int | None, preset: str | None) -> dict[st
     return options
 
 
-def warp_video(
-    source: str | os.PathLike[str],
-    destination: str | os.PathLike[str],
-    inverse_map: ArrayLike | None = None,
-    *,
-    handles: Handles | None = None,
-    width: int | None = None,
-    order: Order = "bilinear",
-    codec: str | None = None,
-    crf: int | None = None,
-    preset: str | None = None,
-    spherical: Spherical | bool | None = None,
-    workers: int | None = None,
-    progress: Progress | None = None,
-    cancel: threading.Event | None = None,
-    start: float | None = None,
-    end: float | None = None,
-    audio: bool = True,
-) -> VideoReport:
-    """Warp every frame of a 360° video by one map and write a new video, its sound and metadata kept.
+@dataclass(frozen=True)
+class Encoding:
+    """The encoder a video is written with, and its settings: chosen by :func:`choose_encoding`.
+
+    Attributes
+    ----------
+    codec : str
+        The FFmpeg encoder.
+    pix_fmt : str
+        The pixel format written: ``yuv420p``, or ``yuv420p10le`` for an input deeper than 8 bits.
+    options : dict of str to str
+        The encoder's options (``crf``, ``preset``, ...).
+    """
+
+    codec: str
+    pix_fmt: str
+    options: dict[str, str]
+
+
+def choose_encoding(info: VideoInfo, codec: str | None = None, crf: int | None = None, preset: str | None = None) -> Encoding:
+    """The encoder a video like ``info`` is written with: ``codec`` (default :func:`default_codec`), in 4:2:0 of the input's depth.
 
     Parameters
     ----------
-    source : path-like
-        The input video: 2:1 equirectangular frames of even height, any codec and container
-        FFmpeg reads; 8-bit or deeper (10-bit is resampled and written in 10 bits).
-    destination : path-like
-        ``.mp4``, ``.m4v`` or ``.mov``; written whole at the end (a temporary file next to
-        it until then), never the input.
-    inverse_map : array_like, shape (h, 2h, 2), optional
-        For each output pixel, the input ``[lon, lat]`` in degrees it shows
-        (``Result.inverse_map()``, or a map saved by ``omniwidget warp --map``). The output
-        is ``2h x h``; ``h`` must be even (4:2:0 video).
-    handles : Handles, optional
-        Instead of ``inverse_map``: the map is computed from the first frame by
-        :func:`~omniwidget.raster.pipeline.warp` (its warnings go to ``VideoReport.warnings``).
-    width : int, optional
-        With ``handles``: the output width, a multiple of 4 (default: the input's).
-    order : {"nearest", "bilinear", "bicubic"}
+    info : VideoInfo
     codec : str, optional
-        The FFmpeg encoder; default :func:`default_codec` (libx264; libx265 for 10-bit).
     crf : int, optional
-        Constant rate factor (lower is better; default 18 for libx264, 20 for libx265).
+        Constant rate factor (default 18 for libx264, 20 for libx265, 30 for libsvtav1).
     preset : str, optional
-        Encoder speed preset (default ``"medium"`` for libx264 and libx265).
-    spherical : Spherical or bool, optional
-        The spherical metadata written: by default (None) the input's, if it has any;
-        True: the input's, or plain equirectangular if it has none; False: none; or the
-        given :class:`~omniwidget.io.spherical.Spherical`.
-    workers : int, optional
-        Threads resampling frames (default 2); decoding and encoding have their own. While
-        a video is warped OpenCV runs on one thread (its setting, for the whole process):
-        its own thread pool on top of these cost 8% more CPU time.
-    progress : callable, optional
-        ``progress(done, total)`` after each frame is encoded, on the calling thread;
-        ``total`` is the expected frame count or None. Returning False cancels.
-    cancel : threading.Event, optional
-        Set from another thread to cancel (checked after each frame).
-    start, end : float, optional
-        Warp only the frames shown from ``start`` up to, not including, ``end``: seconds on
-        the input's timeline (:attr:`VideoInfo.start` is its first frame). The output then
-        starts at 0 with the first of those frames, and holds the audio packets that start
-        in the range (whole packets: a range is cut at frames, not at audio samples). Each
-        range is encoded on its own, from a key frame, so ranges warped on different
-        machines join without re-encoding (:func:`join_video_segments`).
-    audio : bool
-        Copy the audio streams (default); False writes the video alone.
-
-    Returns
-    -------
-    VideoReport
+        Speed preset (default ``"medium"`` for libx264 and libx265).
 
     Raises
     ------
     VideoError
-        The input is missing, not a video, has no video stream, is not a full mono
-        equirectangular panorama (2:1; its spherical metadata), is cut short or broken
-        (a decoding error, fewer frames than it says), or its audio cannot go into the
-        output container; the output name is wrong; the codec is missing. No output is written.
-    ImageError
-        The map is malformed.
-    VideoCancelled
-        When cancelled; no output is written.
-    KeyboardInterrupt
-        Passed on after the temporary file is removed.
+        This FFmpeg has no such encoder, it cannot write the pixel format, or the preset or
+        constant rate factor is not one it takes.
     """
-    av = _av()
-    source, destination = Path(source), Path(destination)
-    if order not in ORDERS:
-        raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
-    if (inverse_map is None) == (handles is None):
-        raise TypeError("give exactly one of inverse_map and handles")
-    if width is not None and (width < 4 or width % 4):
-        raise VideoError(f"--width {width}: a video's width must be a multiple of 4 (4:2:0 video has even sizes)")
-    span = _time_range(start, end)
-    muxer = _check_destination(source, destination)
-    info = probe_video(source)
-    problem = info.panorama_problem()
-    if problem is not None:
-        raise VideoError(f"{source}: {problem}")
-    if info.height % 2 and info.pix_fmt in PLANE_FORMATS:
-        raise VideoError(f"{source}: the frames are {info.width} x {info.height}; 4:2:0 video needs an even height")
-
-    # the map, once -------------------------------------------------------------------------
-    start = time.perf_counter()
-    warnings: tuple[str, ...] = ()
-    if handles is not None:
-        from ..raster.pipeline import warp
-
-        with VideoReader(source, depth=16 if info.bits > 8 else 8) as video:
-            first = video.read_at(info.start)
-        result = warp(first, handles, width=width, order=order, warn=False)
-        warnings = result.warnings
-        the_map = result.inverse_map()
-    else:
-        the_map = np.asarray(inverse_map)
-        if width is not None and the_map.ndim == 3 and width != the_map.shape[1]:
-            raise VideoError(f"--width {width}: the map makes frames {the_map.shape[1]} wide")
-    if the_map.ndim != 3 or the_map.shape[0] % 2 or the_map.shape[1] % 4:
-        raise VideoError(f"the map is {the_map.shape[1]} x {the_map.shape[0]}: a video's output width must be a multiple of 4")
-
-    # the encoder ---------------------------------------------------------------------------
     out_format = "yuv420p10le" if info.bits > 8 else "yuv420p"
     codec = codec or default_codec(info.bits)
     formats = _encoder_formats(codec)
@@ -894,384 +857,49 @@ def warp_video(
         raise VideoError(f"--codec {codec}: this FFmpeg has no such video encoder")
     if formats and out_format not in formats:
         raise VideoError(f"--codec {codec}: it cannot write {out_format} ({'10-bit' if info.bits > 8 else '8-bit'} 4:2:0) video")
-    options = _encoder_options(codec, crf, preset)
-
-    container = _open_input(source)
-    stream = _video_stream(container, source)
-    ctx = stream.codec_context
-    color = {
-        "colorspace": int(ctx.colorspace),
-        "color_range": int(ctx.color_range),
-        "color_primaries": int(ctx.color_primaries),
-        "color_trc": int(ctx.color_trc),
-    }
-    if info.pix_fmt == "yuvj420p":
-        color["color_range"] = 2  # full range, said by the flag rather than the deprecated pixel format
-    warper = _Warper(np.asarray(the_map, np.float32), (info.width, info.height), info.pix_fmt, out_format, order, color)
-    map_seconds = time.perf_counter() - start
-
-    written = _spherical_written(info, spherical)
-    expected = info.frames or (round(info.duration * float(info.rate)) if info.duration and info.rate else None)
-    if span is not None:
-        last = info.start + info.duration if info.duration else float(span[1])
-        covered = min(float(span[1]), last) - max(float(span[0]), info.start)
-        expected = max(0, round(covered * float(info.rate))) if info.rate and info.duration else None
-
-    held, tmp = _temporary_file(destination)
-    opencv = _opencv_single_threaded()
-    opencv.__enter__()
-    stop = threading.Event()
-    items: queue.Queue[Any] = queue.Queue(maxsize=8)
-    pool = ThreadPoolExecutor(max(1, workers or 2), thread_name_prefix="omniwidget-warp")
-    output: Any = None
-    decoder: threading.Thread | None = None
-    done = 0
-    finished = False
-    try:
-        output = av.open(str(tmp), "w", format=muxer)
-        output.metadata.update({k: v for k, v in container.metadata.items() if k not in _OWN_METADATA})
-        rate = info.rate or Fraction(30)
-        out_video = output.add_stream(codec, rate=rate, options=options)
-        out_video.width, out_video.height = warper.out_w, warper.out_h
-        out_video.pix_fmt = out_format
-        # frame threads, as the ffmpeg command line has them: PyAV's default (slice threads only)
-        # makes libx264 cut each frame into slices, slower and worse
-        out_video.codec_context.thread_type = "AUTO"
-        out_video.codec_context.thread_count = 0
-        out_video.time_base = stream.time_base
-        out_video.codec_context.time_base = stream.time_base
-        for name, value in color.items():
-            setattr(out_video.codec_context, name, value)
-        if codec == "libx265" and muxer == "mp4":
-            out_video.codec_context.codec_tag = "hvc1"  # what Apple's players want for HEVC in MP4
-        if "language" in stream.metadata:
-            out_video.metadata["language"] = stream.metadata["language"]
-        audio_streams = list(container.streams.audio) if audio else []
-        audio_out = {}
-        for a in audio_streams:
-            copied = output.add_stream_from_template(a)
-            copied.metadata.update({k: v for k, v in a.metadata.items() if k in ("language", "title", "handler_name")})
-            audio_out[a.index] = copied
-        try:
-            output.start_encoding()
-        except av.FFmpegError as exc:
-            what = ", ".join(info.audio) if audio_streams else "its streams"
-            raise VideoError(
-                f"{source}: cannot write {what} into a {destination.suffix} file ({_ffmpeg_reason(exc)}); "
-                "try .mov, or convert the audio first"
-            ) from None
-        stream.thread_type = "AUTO"
-        if span is not None:  # from the key frame before the range's start
-            container.seek(max(0, int(span[0] / _time_base(stream))), stream=stream, backward=True)
-
-        def decode() -> None:
-            """Demux and decode on this thread; hand audio packets and frame warps (futures) to the caller, in order."""
-            count = 0
-            shift: Fraction | None = None  # seconds taken off the time stamps of a range
-            waiting: list[Any] = []  # a range's audio packets met before its first frame
-            try:
-                for packet in container.demux(stream, *audio_streams):
-                    if stop.is_set():
-                        return
-                    if packet.stream.type == "audio":
-                        if not packet.size or packet.pts is None:
-                            continue
-                        if span is not None:
-                            if not span[0] <= packet.pts * _time_base(packet) < span[1]:
-                                continue
-                            if shift is None:  # until the first frame of the range says how far to move them
-                                waiting.append(packet)
-                                continue
-                            _move(packet, shift)
-                        if not _put(items, ("audio", packet), stop):
-                            return
-                        continue
-                    try:
-                        frames = stream.decode(packet)
-                    except av.FFmpegError as exc:
-                        raise VideoError(f"{source}: the video stream is broken after frame {count} ({_ffmpeg_reason(exc)})") from None
-                    past = False
-                    for frame in frames:
-                        if span is not None:
-                            if frame.pts is None:
-                                raise VideoError(f"{source}: frame {count} has no time stamp, so it cannot be placed in a range")
-                            when = frame.pts * _time_base(frame)
-                            if when < span[0]:
-                                continue
-                            if when >= span[1]:
-                                past = True
-                                break
-                            if shift is None:
-                                shift = when
-                                for early in waiting:
-                                    _move(early, shift)
-                                    if not _put(items, ("audio", early), stop):
-                                        return
-                                waiting.clear()
-                            frame.pts -= round(shift / _time_base(frame))
-                        if (frame.width, frame.height) != (info.width, info.height):
-                            raise VideoError(
-                                f"{source}: frame {count} is {frame.width} x {frame.height}, the first ones {info.width} x {info.height}"
-                            )
-                        if frame.format.name != info.pix_fmt:
-                            raise VideoError(f"{source}: frame {count} is {frame.format.name}, the first ones {info.pix_fmt}")
-                        if not _put(items, ("video", pool.submit(warper, frame)), stop):
-                            return
-                        count += 1
-                    if past:  # the decoder gives frames in the order they are shown: the range is done
-                        break
-            except av.FFmpegError as exc:
-                _put(items, ("error", VideoError(f"{source}: the file is broken after frame {count} ({_ffmpeg_reason(exc)})")), stop)
-            except BaseException as exc:  # handed to the caller, raised there
-                _put(items, ("error", exc), stop)
-            else:
-                _put(items, ("end", count), stop)
-
-        decoder = threading.Thread(target=decode, name="omniwidget-decode", daemon=True)
-        tick = time.perf_counter()
-        decoder.start()
-        last_end = None
-        try:
-            while True:
-                kind, value = items.get()
-                if kind == "error":
-                    raise value
-                if kind == "end":
-                    break
-                if kind == "audio":
-                    value.stream = audio_out[value.stream.index]
-                    output.mux(value)
-                    continue
-                frame = value.result()
-                if frame.time is not None:
-                    last_end = frame.time + (float(frame.duration * frame.time_base) if frame.duration else 0.0)
-                output.mux(out_video.encode(frame))
-                done += 1
-                if cancel is not None and cancel.is_set():
-                    raise VideoCancelled(f"cancelled after {done} frame(s); {destination} was not written")
-                if progress is not None and progress(done, expected) is False:
-                    raise VideoCancelled(f"cancelled after {done} frame(s); {destination} was not written")
-            output.mux(out_video.encode(None))
-            if span is None:
-                _check_complete(info, done, last_end)
-            elif done == 0:
-                raise VideoError(f"{source}: no frame is shown from {float(span[0]):g} s to {float(span[1]):g} s")
-            output.close()
-        except av.FFmpegError as exc:  # the encoder or the muxer (a full disk, say)
-            raise VideoError(f"{destination}: cannot encode or write the video after {done} frame(s) ({_ffmpeg_reason(exc)})") from None
-        seconds = time.perf_counter() - tick
-        if written is not None:
-            write_spherical(tmp, written, in_place=True)
-        commit(held, tmp, destination)
-        finished = True
-    finally:
-        stop.set()
-        if decoder is not None:
-            while decoder.is_alive():  # unblock it if it waits for room in the queue
-                try:
-                    items.get_nowait()
-                except queue.Empty:
-                    decoder.join(0.05)
-        pool.shutdown(wait=True, cancel_futures=True)
-        opencv.__exit__(None, None, None)  # no resampling left
-        if output is not None and not finished:
-            try:
-                output.close()
-            except Exception:  # noqa: BLE001 - the temporary file goes anyway
-                pass
-        container.close()
-        if not finished:
-            tmp.unlink(missing_ok=True)
-        os.close(held)
-    return VideoReport(
-        source=source,
-        destination=destination,
-        frames=done,
-        seconds=seconds,
-        map_seconds=map_seconds,
-        size=(warper.out_w, warper.out_h),
-        codec=codec,
-        pix_fmt=out_format,
-        options=options,
-        planes=warper.planes,
-        audio=info.audio,
-        dropped=info.others,
-        spherical=written,
-        warnings=warnings,
-    )
+    return Encoding(codec, out_format, _encoder_options(codec, crf, preset))
 
 
-def join_video_segments(
-    segments: Sequence[str | os.PathLike[str]],
-    destination: str | os.PathLike[str],
-    *,
-    source: str | os.PathLike[str],
-    spherical: Spherical | bool | None = None,
-) -> VideoReport:
-    """Join videos warped range by range into one, without re-encoding; the sound from the source.
-
-    The segments are the outputs of :func:`warp_video` with ``audio=False`` on consecutive
-    ranges that together cover the whole ``source`` (``start=`` one range's ``end``). Their
-    packets are copied byte for byte and put back on the source's timeline: the frames are
-    the source's frames in the order they are shown, so the ``i``-th frame written takes the
-    time stamp of the source's ``i``-th frame. The source's audio streams are copied packet
-    for packet beside them, its metadata and spherical metadata as :func:`warp_video` keeps them.
-
-    Parameters
-    ----------
-    segments : sequence of path-like
-        The warped ranges in order; each starts with a key frame (as :func:`warp_video`
-        writes them), all with the same encoder settings and frame size.
-    destination : path-like
-        ``.mp4``, ``.m4v`` or ``.mov``; written whole at the end, never one of the inputs.
-    source : path-like
-        The video the segments were warped from.
-    spherical : Spherical or bool, optional
-        As in :func:`warp_video`.
-
-    Returns
-    -------
-    VideoReport
-        ``seconds`` the time the join took; ``map_seconds`` 0.
+def check_output(source: Path, destination: Path) -> str:
+    """The muxer of an output video (``"mp4"`` or ``"mov"``), once its name, folder and difference from ``source`` are checked.
 
     Raises
     ------
     VideoError
-        A segment is missing or unreadable, the segments' encoders differ (their headers),
-        or their frames do not add up to the source's.
+        The name does not end in :data:`OUTPUT_SUFFIXES`, its folder is missing, or it names ``source``.
     """
-    av = _av()
-    source, destination = Path(source), Path(destination)
-    paths = [Path(p) for p in segments]
-    if not paths:
-        raise VideoError(f"{destination}: no segments to join")
-    muxer = _check_destination(source, destination)
-    clash = next((p for p in paths if same_file(p, destination)), None)
-    if clash is not None:
-        raise VideoError(f"{destination}: the output would overwrite its segment {clash}")
-    info = probe_video(source)
-    written = _spherical_written(info, spherical)
-    tick = time.perf_counter()
+    if destination.suffix.lower() not in OUTPUT_SUFFIXES:
+        raise VideoError(f"{destination}: the output video must end in {', '.join(OUTPUT_SUFFIXES)}")
+    if not destination.parent.is_dir():
+        raise VideoError(f"{destination}: the folder {destination.parent} does not exist")
+    if same_file(destination, source):
+        raise VideoError(f"{destination}: the output would overwrite the input {source}; choose another file")
+    return _muxer(destination)
 
-    # the source's frame times (in the order they are shown) and its audio, in one reading
-    container = _open_input(source)
+
+def _muxer(destination: Path) -> str:
+    return "mov" if destination.suffix.lower() == ".mov" else "mp4"
+
+
+def video_output(destination: Path) -> AtomicOutput:
+    """The output video written whole or not at all (:func:`omniwidget._files.atomic_output`), its temporary file a ``.part``.
+
+    The temporary file is hidden beside ``destination`` and named after it
+    (``.out.mp4.1a2b3c4d.part``), with the permissions a new file gets; what a killed run
+    left there is removed first. Use it in a ``with`` statement.
+
+    Raises
+    ------
+    VideoError
+        No temporary file can be made beside ``destination``.
+    """
     try:
-        stream = _video_stream(container, source)
-        shown: list[int] = []
-        sound: list[Any] = []
-        try:
-            for packet in container.demux(stream, *container.streams.audio):
-                if not packet.size:
-                    continue
-                if packet.stream.type == "audio":
-                    sound.append(packet)
-                elif packet.pts is not None:
-                    shown.append(packet.pts)
-        except av.FFmpegError as exc:
-            raise VideoError(f"{source}: the file is broken after {len(shown)} frame(s) ({_ffmpeg_reason(exc)})") from None
-        shown.sort()
-        time_base = _time_base(stream)
-        audio_streams = list(container.streams.audio)
-        metadata = {k: v for k, v in container.metadata.items() if k not in _OWN_METADATA}
-        language = stream.metadata.get("language")
-    except BaseException:
-        container.close()
-        raise
-
-    opened = []
-    finished = False
-    held, tmp = _temporary_file(destination)
-    try:
-        for path in paths:
-            try:
-                opened.append(av.open(str(path)))
-            except (av.FFmpegError, OSError) as exc:
-                raise VideoError(f"{path}: cannot read this segment ({_ffmpeg_reason(exc)})") from None
-        first = opened[0].streams.video[0]
-        header = bytes(first.codec_context.extradata or b"")
-        for path, seg in zip(paths, opened, strict=True):
-            v = seg.streams.video[0]
-            same = (v.codec_context.name, v.width, v.height, v.format.name) == (first.codec_context.name, first.width, first.height, first.format.name)
-            if not same or bytes(v.codec_context.extradata or b"") != header:
-                raise VideoError(f"{path}: this segment was encoded unlike {paths[0].name} (its codec, size or encoder header differ)")
-        output = av.open(str(tmp), "w", format=muxer)
-        try:
-            output.metadata.update(metadata)
-            out_video = output.add_stream_from_template(first)
-            out_video.time_base = time_base
-            if language:
-                out_video.metadata["language"] = language
-            audio_out = {a.index: output.add_stream_from_template(a) for a in audio_streams}
-            for a in audio_streams:
-                audio_out[a.index].metadata.update({k: v for k, v in a.metadata.items() if k in ("language", "title", "handler_name")})
-            output.start_encoding()
-            pending = iter(sound)
-            next_sound = next(pending, None)
-            count = 0
-            for path, seg in zip(paths, opened, strict=True):
-                v = seg.streams.video[0]
-                if count >= len(shown):
-                    raise VideoError(f"{path}: the segments hold more frames than {source} ({len(shown)})")
-                base = v.start_time  # the time stamp of the segment's first frame shown (the container says it)
-                begin = Fraction(shown[count]) * time_base  # where that frame is shown in the source
-                for q in seg.demux(v):  # packet by packet: a segment is never held in memory whole
-                    if not q.size:
-                        continue
-                    if q.pts is None or base is None:
-                        raise VideoError(f"{path}: a frame of this segment has no time stamp")
-                    if count >= len(shown):
-                        raise VideoError(f"{path}: the segments hold more frames than {source} ({len(shown)})")
-                    count += 1
-                    pts = begin + (int(q.pts) - base) * _time_base(v)
-                    dts = begin + (int(q.dts if q.dts is not None else q.pts) - base) * _time_base(v)
-                    while next_sound is not None and next_sound.dts is not None and next_sound.dts * next_sound.time_base <= dts:
-                        next_sound.stream = audio_out[next_sound.stream.index]
-                        output.mux(next_sound)
-                        next_sound = next(pending, None)
-                    q.pts, q.dts = round(pts / time_base), round(dts / time_base)
-                    q.time_base = time_base
-                    q.stream = out_video
-                    output.mux(q)
-            if count != len(shown):
-                raise VideoError(f"the segments hold {count} frame(s) but {source} has {len(shown)}: a range is missing")
-            while next_sound is not None:
-                next_sound.stream = audio_out[next_sound.stream.index]
-                output.mux(next_sound)
-                next_sound = next(pending, None)
-        except av.FFmpegError as exc:
-            raise VideoError(f"{destination}: cannot write the joined video ({_ffmpeg_reason(exc)})") from None
-        finally:
-            output.close()
-        if written is not None:
-            write_spherical(tmp, written, in_place=True)
-        commit(held, tmp, destination)
-        finished = True
-    finally:
-        for seg in opened:
-            seg.close()
-        container.close()
-        if not finished:
-            tmp.unlink(missing_ok=True)
-        os.close(held)
-    return VideoReport(
-        source=source,
-        destination=destination,
-        frames=count,
-        seconds=time.perf_counter() - tick,
-        map_seconds=0.0,
-        size=(first.width, first.height),
-        codec=first.codec_context.name,
-        pix_fmt=first.format.name,
-        options={},
-        planes=True,
-        audio=info.audio,
-        dropped=info.others,
-        spherical=written,
-        warnings=(),
-    )
+        return atomic_output(destination, TEMPORARY_SUFFIX)
+    except OSError as exc:
+        raise VideoError(f"{destination}: cannot make a temporary file next to it ({exc.strerror or exc})") from None
 
 
-def _spherical_written(info: VideoInfo, spherical: Spherical | bool | None) -> Spherical | None:
+def spherical_to_write(info: VideoInfo, spherical: Spherical | bool | None) -> Spherical | None:
     """The spherical metadata to write: the input's by default, plain equirectangular for True, none for False."""
     if spherical is None:
         written = info.spherical
@@ -1286,44 +914,366 @@ def _spherical_written(info: VideoInfo, spherical: Spherical | bool | None) -> S
     return written
 
 
-def _time_base(thing: Any) -> Fraction:
-    """The time base of a stream, packet or frame (FFmpeg always sets one on what it reads)."""
-    time_base = thing.time_base
-    if time_base is None:
-        raise VideoError(f"{thing}: no time base: its time stamps mean nothing")
-    return Fraction(time_base)
+def _copy_stream_metadata(copied: Any, original: Any) -> None:
+    copied.metadata.update({k: v for k, v in original.metadata.items() if k in ("language", "title", "handler_name")})
 
 
-def _move(packet: Any, seconds: Fraction) -> None:
-    """Move a packet ``seconds`` earlier (a range's output starts at 0)."""
-    offset = round(seconds / _time_base(packet))
-    packet.pts -= offset
-    if packet.dts is not None:
-        packet.dts -= offset
+def frame_plane(frame: Any, index: int, dtype: type[np.generic]) -> NDArray:
+    """A frame's plane as a (height, width) view of its buffer (rows padded to ``line_size``)."""
+    plane = frame.planes[index]
+    item = np.dtype(dtype).itemsize
+    return np.frombuffer(plane, dtype).reshape(plane.height, plane.line_size // item)[:, : plane.width]
 
 
-def _time_range(start: float | None, end: float | None) -> tuple[Fraction, Fraction] | None:
-    """``(start, end)`` as exact fractions of a second (an open end is infinitely far), or None for the whole video."""
-    if start is None and end is None:
-        return None
-    far = Fraction(10**18)  # an open end: further than any video goes
-    for name, value in (("start", start), ("end", end)):
-        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, Fraction)) or not np.isfinite(float(value))):
-            raise ValueError(f"{name} must be a finite number of seconds or None, got {value!r}")
-    lo = -far if start is None else Fraction(start)
-    hi = far if end is None else Fraction(end)
-    if not lo < hi:
-        raise ValueError(f"the range's start ({start} s) must come before its end ({end} s)")
-    return lo, hi
+def new_frame(width: int, height: int, pix_fmt: str) -> Any:
+    """A new video frame for the encoder, its planes to be filled (:func:`frame_plane`)."""
+    return _av().VideoFrame(width, height, pix_fmt)
 
 
-def _check_complete(info: VideoInfo, frames: int, last_end: float | None) -> None:
-    """Refuse a video that ended early: fewer frames than its header says and short of its duration by more than two frames."""
-    if frames == 0:
-        raise VideoError(f"{info.path}: the video stream has no frames")
-    interval = float(1 / info.rate) if info.rate else 1 / 30
-    short_in_time = info.duration is not None and last_end is not None and last_end < info.start + info.duration - 2 * interval
-    if (info.frames is not None and frames < info.frames and (short_in_time or last_end is None)) or (info.frames is None and short_in_time):
-        said = f"{info.frames} frames" if info.frames else f"{info.duration:.2f} s"
-        raise VideoError(f"{info.path}: the video stream ends after {frames} frame(s), though the file says {said}; it looks truncated or damaged")
+def frame_from_rgb(rgb: NDArray, rgb_format: str, pix_fmt: str, color: dict[str, int]) -> Any:
+    """A video frame of ``pix_fmt`` for the encoder, converted from RGB pixels in the colour space and range ``color`` says.
 
+    Parameters
+    ----------
+    rgb : ndarray of uint8 or uint16, shape (H, W, 3)
+        C-contiguous.
+    rgb_format : {"rgb24", "rgb48le"}
+    pix_fmt : str
+        The encoder's pixel format.
+    color : dict of str to int
+        FFmpeg's ``colorspace`` and ``color_range`` numbers (0: unspecified), as
+        :attr:`VideoDecoder.color` gives them.
+    """
+    return (
+        _av()
+        .VideoFrame.from_ndarray(rgb, format=rgb_format)
+        .reformat(format=pix_fmt, dst_colorspace=color["colorspace"] or None, dst_color_range=color["color_range"] or None)
+    )
+
+
+class VideoEncoder:
+    """A video file written as frames come: one video stream encoded, the audio streams of a decoder copied packet for packet.
+
+    Opens the file at once (use it in a ``with`` statement, which closes it); :meth:`finish`
+    flushes the encoder and closes the file.
+
+    Parameters
+    ----------
+    path : Path
+        The file written (the temporary file of :func:`video_output`).
+    target : Path
+        The output it stands for: its suffix picks the container, and messages name it.
+    encoding : Encoding
+    size : (int, int)
+        The frames' ``(width, height)``.
+    decoder : VideoDecoder
+        The video's source: its frame rate, time base, colour, language, metadata and audio.
+
+    Attributes
+    ----------
+    frames : int
+        Frames encoded so far.
+    """
+
+    def __init__(self, path: Path, target: Path, encoding: Encoding, size: tuple[int, int], decoder: VideoDecoder) -> None:
+        av = _av()
+        self.target = target
+        self.frames = 0
+        muxer = _muxer(target)
+        self.output = av.open(str(path), "w", format=muxer)
+        try:
+            self.output.metadata.update(decoder.metadata)
+            self.video = self._video_stream(encoding, size, decoder, muxer)
+            self.audio = {}
+            for a in decoder.audio:
+                copied = self.output.add_stream_from_template(a)
+                _copy_stream_metadata(copied, a)
+                self.audio[a.index] = copied
+            self._start(decoder)
+        except BaseException:
+            self._close_quietly()
+            raise
+
+    def _video_stream(self, encoding: Encoding, size: tuple[int, int], decoder: VideoDecoder, muxer: str) -> Any:
+        stream = decoder.stream
+        out = self.output.add_stream(encoding.codec, rate=decoder.info.rate or Fraction(30), options=encoding.options)
+        out.width, out.height = size
+        out.pix_fmt = encoding.pix_fmt
+        # frame threads, as the ffmpeg command line has them: PyAV's default (slice threads only)
+        # makes libx264 cut each frame into slices, slower and worse
+        out.codec_context.thread_type = "AUTO"
+        out.codec_context.thread_count = 0
+        out.time_base = stream.time_base
+        out.codec_context.time_base = stream.time_base
+        for name, value in decoder.color.items():
+            setattr(out.codec_context, name, value)
+        if encoding.codec == "libx265" and muxer == "mp4":
+            out.codec_context.codec_tag = "hvc1"  # what Apple's players want for HEVC in MP4
+        if "language" in stream.metadata:
+            out.metadata["language"] = stream.metadata["language"]
+        return out
+
+    def _start(self, decoder: VideoDecoder) -> None:
+        av = _av()
+        try:
+            self.output.start_encoding()
+        except av.FFmpegError as exc:
+            what = ", ".join(decoder.info.audio) if decoder.audio else "its streams"
+            raise VideoError(
+                f"{decoder.info.path}: cannot write {what} into a {self.target.suffix} file ({_ffmpeg_reason(exc)}); "
+                "try .mov, or convert the audio first"
+            ) from None
+
+    def __enter__(self) -> VideoEncoder:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
+        if self.output is not None:
+            self._close_quietly()
+
+    def _failed(self, exc: BaseException) -> VideoError:
+        """An encoder's or muxer's error (a full disk, say) said as a VideoError naming the output."""
+        return VideoError(f"{self.target}: cannot encode or write the video after {self.frames} frame(s) ({_ffmpeg_reason(exc)})")
+
+    def audio_packet(self, packet: Any) -> None:
+        """Copy an audio packet of the decoder's into its stream here."""
+        av = _av()
+        packet.stream = self.audio[packet.stream.index]
+        try:
+            self.output.mux(packet)
+        except av.FFmpegError as exc:
+            raise self._failed(exc) from None
+
+    def frame(self, frame: Any) -> None:
+        """Encode a frame (of :attr:`Encoding.pix_fmt` and the size given) and write its packets."""
+        av = _av()
+        try:
+            self.output.mux(self.video.encode(frame))
+        except av.FFmpegError as exc:
+            raise self._failed(exc) from None
+        self.frames += 1
+
+    def finish(self) -> None:
+        """Flush the encoder and close the file."""
+        av = _av()
+        try:
+            self.output.mux(self.video.encode(None))
+            self.output.close()
+        except av.FFmpegError as exc:
+            raise self._failed(exc) from None
+        self.output = None
+
+    def _close_quietly(self) -> None:
+        try:
+            self.output.close()
+        except Exception:  # noqa: BLE001 - the temporary file goes anyway
+            pass
+        self.output = None
+
+
+# --- joining ranges ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Timeline:
+    """What a join takes from the source, in one reading: its frames' time stamps in the order they are shown, and its audio."""
+
+    shown: list[int]
+    sound: list[Any]
+    time_base: Fraction
+
+
+def _timeline(decoder: VideoDecoder) -> _Timeline:
+    av = _av()
+    shown: list[int] = []
+    sound: list[Any] = []
+    try:
+        for packet in decoder.container.demux(decoder.stream, *decoder.audio):
+            if not packet.size:
+                continue
+            if packet.stream.type == "audio":
+                sound.append(packet)
+            elif packet.pts is not None:
+                shown.append(packet.pts)
+    except av.FFmpegError as exc:
+        raise VideoError(f"{decoder.info.path}: the file is broken after {len(shown)} frame(s) ({_ffmpeg_reason(exc)})") from None
+    return _Timeline(sorted(shown), sound, _time_base(decoder.stream))
+
+
+@contextlib.contextmanager
+def _opened_segments(paths: list[Path]) -> Iterator[list[Any]]:
+    """The segments open, checked to be encoded alike (codec, size, pixel format, encoder header); closed when the block ends."""
+    av = _av()
+    opened: list[Any] = []
+    try:
+        for path in paths:
+            try:
+                opened.append(av.open(str(path)))
+            except (av.FFmpegError, OSError) as exc:
+                raise VideoError(f"{path}: cannot read this segment ({_ffmpeg_reason(exc)})") from None
+        first = opened[0].streams.video[0]
+        header = bytes(first.codec_context.extradata or b"")
+        for path, seg in zip(paths, opened, strict=True):
+            v = seg.streams.video[0]
+            same = (v.codec_context.name, v.width, v.height, v.format.name) == (first.codec_context.name, first.width, first.height, first.format.name)
+            if not same or bytes(v.codec_context.extradata or b"") != header:
+                raise VideoError(f"{path}: this segment was encoded unlike {paths[0].name} (its codec, size or encoder header differ)")
+        yield opened
+    finally:
+        for seg in opened:
+            seg.close()
+
+
+class _Joiner:
+    """Writes the segments' packets on the source's timeline, the source's audio packets interleaved by their times."""
+
+    def __init__(self, path: Path, muxer: str, first: Any, decoder: VideoDecoder, timeline: _Timeline) -> None:
+        av = _av()
+        self.timeline = timeline
+        self.source = decoder.info.path
+        self.count = 0  # frames written
+        self.output = av.open(str(path), "w", format=muxer)
+        try:
+            self.output.metadata.update(decoder.metadata)
+            self.video = self.output.add_stream_from_template(first)
+            self.video.time_base = timeline.time_base
+            language = decoder.stream.metadata.get("language")
+            if language:
+                self.video.metadata["language"] = language
+            self.audio = {a.index: self.output.add_stream_from_template(a) for a in decoder.audio}
+            for a in decoder.audio:
+                _copy_stream_metadata(self.audio[a.index], a)
+            self.output.start_encoding()
+        except BaseException:
+            self.output.close()
+            raise
+        self.pending = iter(timeline.sound)
+        self.next_sound = next(self.pending, None)
+
+    def sound_until(self, dts: Fraction | None) -> None:
+        """Write the source's audio packets up to ``dts`` seconds (all that are left for None)."""
+        while self.next_sound is not None and (dts is None or (self.next_sound.dts is not None and self.next_sound.dts * self.next_sound.time_base <= dts)):
+            self.next_sound.stream = self.audio[self.next_sound.stream.index]
+            self.output.mux(self.next_sound)
+            self.next_sound = next(self.pending, None)
+
+    def segment(self, path: Path, seg: Any) -> None:
+        """Write one segment's packets, each moved to the time of the source's frame it stands for."""
+        shown, time_base = self.timeline.shown, self.timeline.time_base
+        v = seg.streams.video[0]
+        if self.count >= len(shown):
+            raise VideoError(f"{path}: the segments hold more frames than {self.source} ({len(shown)})")
+        base = v.start_time  # the time stamp of the segment's first frame shown (the container says it)
+        begin = Fraction(shown[self.count]) * time_base  # where that frame is shown in the source
+        for q in seg.demux(v):  # packet by packet: a segment is never held in memory whole
+            if not q.size:
+                continue
+            if q.pts is None or base is None:
+                raise VideoError(f"{path}: a frame of this segment has no time stamp")
+            if self.count >= len(shown):
+                raise VideoError(f"{path}: the segments hold more frames than {self.source} ({len(shown)})")
+            self.count += 1
+            pts = begin + (int(q.pts) - base) * _time_base(v)
+            dts = begin + (int(q.dts if q.dts is not None else q.pts) - base) * _time_base(v)
+            self.sound_until(dts)
+            q.pts, q.dts = round(pts / time_base), round(dts / time_base)
+            q.time_base = time_base
+            q.stream = self.video
+            self.output.mux(q)
+
+    def close(self) -> None:
+        self.output.close()
+
+
+def join_video_segments(
+    segments: Sequence[str | os.PathLike[str]],
+    destination: str | os.PathLike[str],
+    *,
+    source: str | os.PathLike[str],
+    spherical: Spherical | bool | None = None,
+) -> VideoReport:
+    """Join videos warped range by range into one, without re-encoding; the sound from the source.
+
+    The segments are the outputs of :func:`omniwidget.app.video.warp_video` with ``audio=False`` on consecutive
+    ranges that together cover the whole ``source`` (``start=`` one range's ``end``). Their
+    packets are copied byte for byte and put back on the source's timeline: the frames are
+    the source's frames in the order they are shown, so the ``i``-th frame written takes the
+    time stamp of the source's ``i``-th frame. The source's audio streams are copied packet
+    for packet beside them, its metadata and spherical metadata as the warp keeps them.
+
+    Parameters
+    ----------
+    segments : sequence of path-like
+        The warped ranges in order; each starts with a key frame (as the warp writes them),
+        all with the same encoder settings and frame size.
+    destination : path-like
+        ``.mp4``, ``.m4v`` or ``.mov``; written whole at the end, never one of the inputs.
+    source : path-like
+        The video the segments were warped from.
+    spherical : Spherical or bool, optional
+        The spherical metadata written (:func:`spherical_to_write`): the source's by default.
+
+    Returns
+    -------
+    VideoReport
+        ``seconds`` the time the join took; ``map_seconds`` 0.
+
+    Raises
+    ------
+    VideoError
+        A segment is missing or unreadable, the segments' encoders differ (their headers),
+        or their frames do not add up to the source's.
+    """
+    source, destination = Path(source), Path(destination)
+    paths = [Path(p) for p in segments]
+    if not paths:
+        raise VideoError(f"{destination}: no segments to join")
+    muxer = check_output(source, destination)
+    clash = next((p for p in paths if same_file(p, destination)), None)
+    if clash is not None:
+        raise VideoError(f"{destination}: the output would overwrite its segment {clash}")
+    info = probe_video(source)
+    written = spherical_to_write(info, spherical)
+    tick = time.perf_counter()
+    with VideoDecoder(info) as decoder:
+        timeline = _timeline(decoder)
+        with video_output(destination) as out, _opened_segments(paths) as opened:
+            first = opened[0].streams.video[0]
+            _join(out.path, muxer, decoder, timeline, zip(paths, opened, strict=True), destination)
+            if written is not None:
+                write_spherical(out.path, written, in_place=True)
+    return VideoReport(
+        source=source,
+        destination=destination,
+        frames=len(timeline.shown),
+        seconds=time.perf_counter() - tick,
+        map_seconds=0.0,
+        size=(first.width, first.height),
+        codec=first.codec_context.name,
+        pix_fmt=first.format.name,
+        options={},
+        planes=True,
+        audio=info.audio,
+        dropped=info.others,
+        spherical=written,
+        warnings=(),
+    )
+
+
+def _join(path: Path, muxer: str, decoder: VideoDecoder, timeline: _Timeline, segments: Iterable[tuple[Path, Any]], destination: Path) -> None:
+    """Write the segments, then the audio left, into ``path``; refuse segments whose frames are not the source's."""
+    av = _av()
+    joiner: _Joiner | None = None
+    try:
+        segments = list(segments)
+        joiner = _Joiner(path, muxer, segments[0][1].streams.video[0], decoder, timeline)
+        for seg_path, seg in segments:
+            joiner.segment(seg_path, seg)
+        if joiner.count != len(timeline.shown):
+            raise VideoError(f"the segments hold {joiner.count} frame(s) but {decoder.info.path} has {len(timeline.shown)}: a range is missing")
+        joiner.sound_until(None)
+    except av.FFmpegError as exc:
+        raise VideoError(f"{destination}: cannot write the joined video ({_ffmpeg_reason(exc)})") from None
+    finally:
+        if joiner is not None:
+            joiner.close()
