@@ -30,7 +30,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..document.handles import CageHandle, Handle, Handles, Options, PointHandle
+from ..document.handles import Handle, Handles, Options, PointHandle
+from ..method.kinds import kind_of
 from ..sphere import coords
 from ..sphere.moebius import Moebius
 from . import vertical
@@ -176,28 +177,8 @@ def level_document(doc: Handles, up: Level | LonLat | Moebius) -> Handles:
     new = Moebius.levelling(new_up)
     q = new @ old.inverse
 
-    def carried(points: Sequence[LonLat]) -> tuple[LonLat, ...]:
-        moved = q(np.asarray(points, dtype=np.float64))
-        return tuple((float(lon), float(lat)) for lon, lat in moved)
-
-    out: list[Handle] = []
-    for h in doc.handles:
-        if h.id == LEVEL_ID and isinstance(h, PointHandle):
-            continue
-        if isinstance(h, PointHandle):
-            final = h.target if h.target is not None else tuple(old(np.asarray(h.position, dtype=np.float64)))  # as shown now
-            (target,) = carried([final])
-            at_target = q.local_scale_rotation(final)[1]
-            at_position = q.local_scale_rotation(old(np.asarray(h.position, dtype=np.float64)))[1]
-            out.append(replace(h, target=target, rotation=_wrap_turn(h.rotation + at_target - at_position)))
-        elif isinstance(h, CageHandle):
-            finals = h.targets if h.targets is not None else [tuple(v) for v in old(np.asarray(h.vertices, dtype=np.float64))]
-            out.append(replace(h, targets=carried(finals)))
-        elif h.targets is not None:
-            start, middle, end = carried(h.targets)
-            out.append(replace(h, targets=(start, middle, end)))
-        else:
-            out.append(h)
+    kept = [h for h in doc.handles if not (h.id == LEVEL_ID and isinstance(h, PointHandle))]
+    out: list[Handle] = [kind_of(h).carried(h, old, q) for h in kept]
     return Handles(tuple(out), replace(doc.options, up=new_up))
 
 
@@ -213,16 +194,6 @@ def _up_of(up: Level | LonLat | Moebius) -> LonLat:
         return found
     lon, lat = (float(v) for v in up)
     return (lon, lat)
-
-
-def _wrap_turn(angle: float) -> float:
-    """An angle in degrees brought into ``(-180, 180]``."""
-    out = math.fmod(angle, 360.0)
-    if out > 180.0:
-        out -= 360.0
-    elif out <= -180.0:
-        out += 360.0
-    return out
 
 
 def level(

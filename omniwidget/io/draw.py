@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
+from ..document.handles import Handles
+from ..method.kinds import kind_of
 from ..sphere import coords
 
 __all__ = ["display_rgb", "draw_handles", "draw_polyline"]
@@ -117,26 +118,13 @@ def draw_handles(
     radius = max(2, thickness + 1)
     for h in handles.handles:
         rgb = COLOURS[h.kind] if colour is None else colour
-        if isinstance(h, LineHandle):
-            curve = _arc(h.start, h.end)
-            points = h.control_points()
-            if stage == "output":
-                curve, points = h.moebius()(curve), h.target_points()
+        outline = kind_of(h).outline(h, stage, _arc)
+        for curve in outline.arcs:
             draw_polyline(canvas, curve, rgb, thickness, dash=dash)
-            for p in points if dots else ():
-                _dot(canvas, p, rgb, radius)
-        elif isinstance(h, PointHandle):
-            points = h.control_points() if stage == "input" else h.target_points()
-            for tip in points[1:]:
-                draw_polyline(canvas, _arc(points[0], tip), rgb, thickness, dash=dash)
-            if dots:
-                _dot(canvas, points[0], rgb, radius + 1)
-        elif isinstance(h, CageHandle):
-            vertices = h.vertices if stage == "input" else h.finals
-            for a, b in zip(vertices, vertices[1:] + vertices[:1], strict=True):
-                draw_polyline(canvas, _arc(a, b), rgb, thickness, dash=dash)
-            for v in vertices if dots else ():
-                _dot(canvas, v, rgb, radius)
+        for p in outline.dots if dots else ():
+            _dot(canvas, p, rgb, radius)
+        for p in outline.big_dots if dots else ():
+            _dot(canvas, p, rgb, radius + 1)
     return canvas
 
 

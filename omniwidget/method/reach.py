@@ -1,4 +1,4 @@
-"""A point handle's reach (issue 39): with the still background, its turn and zoom cover a region.
+"""A point handle's reach: with the still background, its turn and zoom cover a region.
 
 Bounded biharmonic weights and the background's ease fall within a few degrees of a point
 handle, so without this a zoom or a turn shows on a spot of about a degree. With
@@ -22,10 +22,11 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..document.handles import REACH_RANGE, CageHandle, Handles, LineHandle, PointHandle
+from ..document.handles import REACH_RANGE, Handles, PointHandle
 from ..sphere import coords
 from ..sphere.moebius import Moebius
 from .constraints import Constraints, Control
+from .kinds import kind_of
 
 __all__ = ["DEFAULT_REACH", "default_reach", "profiles", "reach_discs", "reach_samples", "rung_count", "rung_maps", "solved", "with_reach"]
 
@@ -46,10 +47,8 @@ RINGS = 24
 #: turn and zoom within a third of it, fading evenly in distance out to the reach, which stretches the annulus by
 #: about 1.5 x the shift / the reach: at most 0.5 here); moved farther, less and less, until at twice this share its
 #: turn and zoom stay within the weight the bounded biharmonic solve gave its shift. Chosen on the even seeds of the
-#: points and mixed families (bench/RESULTS.md, issue 39): 96% of their points then hold the asked zoom within 10% at
-#: a third of the reach, against 8% when a point moved 0.5° or more kept its turn and zoom within its shift's weight;
-#: a whole reach gave 99%, but stretched a room's annulus near to folding (tests/test_sampled.py: a point moved 0.48
-#: of its reach), where the sampled map missed the exact one by 9 px.
+#: points and mixed families: the share of points that hold the asked zoom at a third of the reach against how near
+#: a room's annulus comes to folding (bench/RESULTS.md, "a point handle's reach").
 SHIFT_FREE = 0.33
 #: The most rungs above the shift.
 MAX_RUNGS = 12
@@ -75,17 +74,8 @@ def default_reach(handles: Handles, index: int) -> float:
     others: list[NDArray[np.float64]] = []
     t = np.linspace(0.0, 1.0, 33)
     for j, o in enumerate(handles.handles):
-        if j == index:
-            continue
-        if isinstance(o, PointHandle):
-            others.append(np.asarray([o.position, o.final], np.float64))
-        elif isinstance(o, LineHandle):
-            others.append(coords.geodesic(o.start, o.end, t))
-            others.append(o.moebius()(coords.geodesic(o.start, o.end, t)))
-        elif isinstance(o, CageHandle):
-            for ring in (o.vertices, o.finals):
-                n = len(ring)
-                others.extend(coords.geodesic(ring[v], ring[(v + 1) % n], t) for v in range(n))
+        if j != index:
+            others.extend(kind_of(o).footprint(o, t))
     if not others:
         return DEFAULT_REACH
     nearest = float(np.min(coords.angular_distance(np.vstack(others), np.asarray(h.final, np.float64))))
@@ -108,7 +98,7 @@ def profiles(tau: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.
         turn); the zoom as ``log2(0.8 + 1.2 * 6 ** -(1 - tau))``, which falls fastest where
         it is still large, so that a zoom in never magnifies below 0.8 and a zoom out never
         above 1.25 on the way (the bound on the slope grows with the zoom left; see
-        bench/RESULTS.md, issue 39).
+        bench/RESULTS.md, "a point handle's reach").
     """
     tau = np.clip(np.asarray(tau, np.float64), 0.0, 1.0)
     return np.log2(0.8 + 1.2 * 6.0 ** -(1.0 - tau)), tau
