@@ -581,7 +581,7 @@ def _raise(exc):
             "FloatingPointError: overflow encountered in the blend",
         ),
         (["omniwidget.raster.pipeline.remap_panorama"], RuntimeError(), "(RuntimeError)"),
-        (["omniwidget.app.session._jpeg"], ow.ImageError("could not encode the image for display"), "ImageError: could not encode"),
+        (["omniwidget.app.preview.jpeg"], ow.ImageError("could not encode the image for display"), "ImageError: could not encode"),
     ],
     ids=["constraints", "mesh", "solver", "blend", "resampling", "display"],
 )
@@ -611,7 +611,7 @@ def test_an_error_anywhere_in_the_computation_is_shown_and_the_next_edit_recover
 
 @pytest.mark.parametrize("where", ["image", "outputs"])
 def test_a_result_that_is_not_finite_is_refused_like_an_error(monkeypatch, where):
-    from omniwidget.app import session as module
+    from omniwidget.app import preview as module
 
     image = ow.sample_image().astype(np.float32) / 255
     ed = Editor(image, doc(WINDOW_TOP, POINT), autosave=False)
@@ -753,7 +753,7 @@ def test_save_image_keeps_a_jpegs_format_and_its_pixels_are_the_encoders_own(roo
 
 
 def test_save_image_falls_back_to_png_when_the_inputs_format_cannot_hold_the_result(tmp_path, monkeypatch):
-    from omniwidget.app.session import _result_location
+    from omniwidget.app.exports import result_location as _result_location
 
     rgba = np.zeros((4, 8, 4), np.uint8)
     assert _result_location(tmp_path / "room.jpg", rgba) == tmp_path / "room-rectified.png"  # alpha in a JPEG

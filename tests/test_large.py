@@ -218,8 +218,8 @@ def test_the_editor_saves_a_panorama_too_large_to_warp_whole_in_strips_with_its_
     session.start()
     assert session.wait()["state"] == "idle"
     said = []
-    set_status = session._set_status
-    monkeypatch.setattr(session, "_set_status", lambda **fields: (said.append(fields), set_status(**fields)))
+    set_status = session.board.set_status
+    monkeypatch.setattr(session.board, "set_status", lambda **fields: (said.append(fields), set_status(**fields)))
     opened = []
     monkeypatch.setattr(large.DiskPanorama, "take", _counted(large.DiskPanorama.take, opened))
     saved = session.save_image(tmp_path / "saved.png")

@@ -25,6 +25,7 @@ import traitlets
 from numpy.typing import NDArray
 
 from ..app.session import AUTOSAVE_SUFFIX, DISPLAY_WIDTH, HISTORY, PREVIEW_WIDTH, RESULT_SUFFIX, EditingSession, as_document
+from ..app.status import Changes
 from ..document.handles import Handles
 from ..errors import HandlesError
 
@@ -251,7 +252,7 @@ class Editor(anywidget.AnyWidget):
         self._ready = True
         self._session.start()
 
-    def _apply(self, changes: dict) -> None:
+    def _apply(self, changes: Changes) -> None:
         """The session's changes, onto the traits (sent to the browser together)."""
         if not self._ready:
             return  # the session's first state is the traits' first value
