@@ -26,7 +26,7 @@ import json
 import math
 import os
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -77,9 +77,8 @@ REACH_RANGE = (0.5, 90.0)
 #: deeper JSON is refused before it is parsed.
 MAX_DEPTH = 32
 #: The most handles a document may have, a cage's vertices counted each (each is a control of
-#: the blend); ``OMNIWIDGET_MAX_HANDLES`` raises it. The cost grows faster than the count:
-#: 1,000 point handles took 154 s and 1.2 GB on a loaded machine, 300 crossing lines 36 s and
-#: 0.81 GB (bench/RESULTS.md, "Limits (issue 35)"); the weights' own cap
+#: the blend); ``OMNIWIDGET_MAX_HANDLES`` raises it. The cost in time and memory grows faster
+#: than the count (bench/RESULTS.md, "Limits"); the weights' own cap
 #: (:data:`omniwidget.method.limits.MAX_WEIGHTS`) may refuse fewer lines.
 MAX_HANDLES = 1000
 #: The largest handles file read (bytes): a document of :data:`MAX_HANDLES` handles takes
@@ -268,7 +267,9 @@ class CageHandle:
         rotation = self.rotation()
         turned = coords.lonlat_to_xyz(np.asarray(self.vertices, np.float64)) @ rotation.T
         whole = Moebius.from_rotation(rotation)
-        return [_shortest_turn(v, t) @ whole for v, t in zip(turned, coords.lonlat_to_xyz(np.asarray(self.finals, np.float64)), strict=True)]
+        return [
+            _shortest_turn(v, t) @ whole for v, t in zip(turned, coords.lonlat_to_xyz(np.asarray(self.finals, np.float64)), strict=True)
+        ]
 
     def rotation(self) -> NDArray[np.float64]:
         """The rotation of the sphere that best moves the vertices to their targets, (3, 3) (:func:`coords.best_rotation`).
@@ -339,13 +340,7 @@ class Handles:
         With ``options.rectify == "all"`` the lines' targets are to come from the joint
         solve of Sec. 3.4; for a single line that solve gives exactly eq. (4).
         """
-        out: list[Moebius] = []
-        for handle in self.handles:
-            if isinstance(handle, CageHandle):
-                out.extend(handle.vertex_maps())
-            else:
-                out.append(handle.moebius())
-        return out
+        return [m for h in self.handles for m in _FORMATS[h.kind].maps(h)]
 
     # --- JSON -----------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -414,7 +409,8 @@ def load_handles(path: str | os.PathLike[str]) -> Handles:
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
             raise HandlesError(
-                str(path), f"the handles file is {size / 1e6:.0f} MB, more than the {MAX_FILE_BYTES / 1e6:.0f} MB read (1,000 handles take 0.2 MB)"
+                str(path),
+                f"the handles file is {size / 1e6:.0f} MB, more than the {MAX_FILE_BYTES / 1e6:.0f} MB read (1,000 handles take 0.2 MB)",
             )
         text = path.read_bytes()
     except NotRegularFileError as exc:
@@ -472,13 +468,6 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
 def _constant(name: str) -> float:
     """``NaN``, ``Infinity`` and ``-Infinity`` (not JSON, but Python writes them) as floats, refused where they are used."""
     return float(name)
-
-
-_HANDLE_FIELDS = {
-    "point": ({"kind", "position"}, {"target", "rotation", "scale", "reach", "id"}),
-    "line": ({"kind", "start", "end"}, {"rectify", "targets", "id"}),
-    "cage": ({"kind", "vertices"}, {"targets", "id"}),
-}
 
 
 def _describe(value: Any) -> str:
@@ -555,28 +544,36 @@ def _parse_handle(data: Any, index: int) -> Handle:
     hid = data.get("id")
     if hid is not None and (not isinstance(hid, str) or not hid):
         raise HandlesError(f"{where}.id", f"expected a non-empty string, got {_describe(hid)}")
-    if kind == "point":
-        target = data.get("target")
-        return PointHandle(
-            position=_lonlat(data["position"], f"{where}.position"),
-            target=None if target is None else _lonlat(target, f"{where}.target"),
-            rotation=_number(_given(data, "rotation", 0.0), f"{where}.rotation", *ROTATION_RANGE),
-            scale=_number(_given(data, "scale", 1.0), f"{where}.scale", *SCALE_RANGE),
-            id=hid,
-            reach=None if data.get("reach") is None else _number(data["reach"], f"{where}.reach", *REACH_RANGE),
-        )
-    if kind == "line":
-        rectify = _given(data, "rectify", data.get("targets") is None)
-        if not isinstance(rectify, bool):
-            raise HandlesError(f"{where}.rectify", f"expected true or false, got {_describe(rectify)}")
-        targets = data.get("targets")
-        return LineHandle(
-            start=_lonlat(data["start"], f"{where}.start"),
-            end=_lonlat(data["end"], f"{where}.end"),
-            rectify=rectify,
-            targets=None if targets is None else _lonlat_triple(targets, f"{where}.targets"),
-            id=hid,
-        )
+    return _FORMATS[kind].parse(data, where, hid)
+
+
+def _parse_point(data: Mapping[str, Any], where: str, hid: str | None) -> PointHandle:
+    target = data.get("target")
+    return PointHandle(
+        position=_lonlat(data["position"], f"{where}.position"),
+        target=None if target is None else _lonlat(target, f"{where}.target"),
+        rotation=_number(_given(data, "rotation", 0.0), f"{where}.rotation", *ROTATION_RANGE),
+        scale=_number(_given(data, "scale", 1.0), f"{where}.scale", *SCALE_RANGE),
+        id=hid,
+        reach=None if data.get("reach") is None else _number(data["reach"], f"{where}.reach", *REACH_RANGE),
+    )
+
+
+def _parse_line(data: Mapping[str, Any], where: str, hid: str | None) -> LineHandle:
+    rectify = _given(data, "rectify", data.get("targets") is None)
+    if not isinstance(rectify, bool):
+        raise HandlesError(f"{where}.rectify", f"expected true or false, got {_describe(rectify)}")
+    targets = data.get("targets")
+    return LineHandle(
+        start=_lonlat(data["start"], f"{where}.start"),
+        end=_lonlat(data["end"], f"{where}.end"),
+        rectify=rectify,
+        targets=None if targets is None else _lonlat_triple(targets, f"{where}.targets"),
+        id=hid,
+    )
+
+
+def _parse_cage(data: Mapping[str, Any], where: str, hid: str | None) -> CageHandle:
     targets = data.get("targets")
     return CageHandle(
         vertices=_lonlat_list(data["vertices"], f"{where}.vertices", minimum=3),
@@ -587,36 +584,44 @@ def _parse_handle(data: Any, index: int) -> Handle:
 
 def _validate_handle(h: Handle, where: str) -> None:
     """Geometric checks shared by parsed documents and handles built in Python."""
-    if isinstance(h, PointHandle):
-        _lonlat(h.position, f"{where}.position")
-        if h.target is not None:
-            _lonlat(h.target, f"{where}.target")
-        _number(h.rotation, f"{where}.rotation", *ROTATION_RANGE)
-        _number(h.scale, f"{where}.scale", *SCALE_RANGE)
-        if h.reach is not None:
-            _number(h.reach, f"{where}.reach", *REACH_RANGE)
-    elif isinstance(h, LineHandle):
-        _lonlat(h.start, f"{where}.start")
-        _lonlat(h.end, f"{where}.end")
-        length = _separation(h.start, h.end)
-        if length < MIN_SEPARATION:
-            raise HandlesError(f"{where}.end", "the line has zero length (start and end coincide)")
-        if length > 180.0 - MIN_SEPARATION:
-            raise HandlesError(f"{where}.end", "start and end are antipodal: the line between them is not unique")
-        if h.targets is not None:
-            if h.rectify:
-                raise HandlesError(f"{where}.targets", "give either explicit targets or rectify: true, not both")
-            _distinct(_lonlat_list(h.targets, f"{where}.targets", count=3), f"{where}.targets")
-    elif isinstance(h, CageHandle):
-        vertices = _lonlat_list(h.vertices, f"{where}.vertices", minimum=3)
-        _distinct(vertices, f"{where}.vertices")
-        if h.targets is not None:
-            targets = _lonlat_list(h.targets, f"{where}.targets", count=len(vertices))
-            _distinct(targets, f"{where}.targets")
-    else:
+    form = _format_of(h)
+    if form is None:
         raise HandlesError(where, f"expected a PointHandle, LineHandle or CageHandle, got {type(h).__name__}")
+    form.validate(h, where)
     if h.id is not None and (not isinstance(h.id, str) or not h.id):
         raise HandlesError(f"{where}.id", f"expected a non-empty string, got {_describe(h.id)}")
+
+
+def _validate_point(h: PointHandle, where: str) -> None:
+    _lonlat(h.position, f"{where}.position")
+    if h.target is not None:
+        _lonlat(h.target, f"{where}.target")
+    _number(h.rotation, f"{where}.rotation", *ROTATION_RANGE)
+    _number(h.scale, f"{where}.scale", *SCALE_RANGE)
+    if h.reach is not None:
+        _number(h.reach, f"{where}.reach", *REACH_RANGE)
+
+
+def _validate_line(h: LineHandle, where: str) -> None:
+    _lonlat(h.start, f"{where}.start")
+    _lonlat(h.end, f"{where}.end")
+    length = _separation(h.start, h.end)
+    if length < MIN_SEPARATION:
+        raise HandlesError(f"{where}.end", "the line has zero length (start and end coincide)")
+    if length > 180.0 - MIN_SEPARATION:
+        raise HandlesError(f"{where}.end", "start and end are antipodal: the line between them is not unique")
+    if h.targets is not None:
+        if h.rectify:
+            raise HandlesError(f"{where}.targets", "give either explicit targets or rectify: true, not both")
+        _distinct(_lonlat_list(h.targets, f"{where}.targets", count=3), f"{where}.targets")
+
+
+def _validate_cage(h: CageHandle, where: str) -> None:
+    vertices = _lonlat_list(h.vertices, f"{where}.vertices", minimum=3)
+    _distinct(vertices, f"{where}.vertices")
+    if h.targets is not None:
+        targets = _lonlat_list(h.targets, f"{where}.targets", count=len(vertices))
+        _distinct(targets, f"{where}.targets")
 
 
 def _check_count(sizes: list[int]) -> None:
@@ -638,7 +643,7 @@ def _validate_document(doc: Handles) -> None:
         _number(doc.options.anchor, "options.anchor", *ANCHOR_RANGE)
     if doc.options.up is not None:
         _up(doc.options.up)
-    _check_count([len(h.vertices) if isinstance(h, CageHandle) and isinstance(h.vertices, Sequence) else 1 for h in doc.handles])
+    _check_count([_size(h) for h in doc.handles])
     seen: dict[str, int] = {}
     for i, h in enumerate(doc.handles):
         _validate_handle(h, f"handles[{i}]")
@@ -705,24 +710,92 @@ def _pair(p: Sequence[float]) -> list[float]:
 
 
 def _handle_to_dict(h: Handle) -> dict[str, Any]:
-    if isinstance(h, PointHandle):
-        out: dict[str, Any] = {
-            "kind": "point",
-            "position": _pair(h.position),
-            "target": _pair(h.final),
-            "rotation": h.rotation,
-            "scale": h.scale,
-        }
-        if h.reach is not None:
-            out["reach"] = h.reach
-    elif isinstance(h, LineHandle):
-        out = {"kind": "line", "start": _pair(h.start), "end": _pair(h.end), "rectify": h.rectify}
-        if h.targets is not None:
-            out["targets"] = [_pair(t) for t in h.targets]
-    else:
-        out = {"kind": "cage", "vertices": [_pair(v) for v in h.vertices]}
-        if h.targets is not None:
-            out["targets"] = [_pair(t) for t in h.targets]
+    form = _format_of(h)
+    if form is None:
+        raise HandlesError("handles", f"expected a PointHandle, LineHandle or CageHandle, got {type(h).__name__}")
+    out = form.to_dict(h)
     if h.id is not None:
         out["id"] = h.id
     return out
+
+
+def _point_to_dict(h: PointHandle) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "kind": "point",
+        "position": _pair(h.position),
+        "target": _pair(h.final),
+        "rotation": h.rotation,
+        "scale": h.scale,
+    }
+    if h.reach is not None:
+        out["reach"] = h.reach
+    return out
+
+
+def _line_to_dict(h: LineHandle) -> dict[str, Any]:
+    out: dict[str, Any] = {"kind": "line", "start": _pair(h.start), "end": _pair(h.end), "rectify": h.rectify}
+    if h.targets is not None:
+        out["targets"] = [_pair(t) for t in h.targets]
+    return out
+
+
+def _cage_to_dict(h: CageHandle) -> dict[str, Any]:
+    out: dict[str, Any] = {"kind": "cage", "vertices": [_pair(v) for v in h.vertices]}
+    if h.targets is not None:
+        out["targets"] = [_pair(t) for t in h.targets]
+    return out
+
+
+def _cage_size(h: CageHandle) -> int:
+    return len(h.vertices) if isinstance(h.vertices, Sequence) else 1
+
+
+@dataclass(frozen=True)
+class _Format:
+    """One kind of handle in the file: its record, its fields, and how it is read, checked, written and counted."""
+
+    record: type
+    required: frozenset[str]
+    optional: frozenset[str]
+    parse: Callable[[Mapping[str, Any], str, str | None], Any]
+    validate: Callable[[Any, str], None]
+    to_dict: Callable[[Any], dict[str, Any]]
+    size: Callable[[Any], int] = lambda h: 1  # how many handles it counts for (MAX_HANDLES)
+    maps: Callable[[Any], list[Moebius]] = lambda h: [h.moebius()]
+
+
+#: Each kind of handle by its ``kind`` field, in the order the file's schema lists them.
+_FORMATS: dict[str, _Format] = {
+    "point": _Format(
+        PointHandle,
+        frozenset({"kind", "position"}),
+        frozenset({"target", "rotation", "scale", "reach", "id"}),
+        _parse_point,
+        _validate_point,
+        _point_to_dict,
+    ),
+    "line": _Format(
+        LineHandle, frozenset({"kind", "start", "end"}), frozenset({"rectify", "targets", "id"}), _parse_line, _validate_line, _line_to_dict
+    ),
+    "cage": _Format(
+        CageHandle,
+        frozenset({"kind", "vertices"}),
+        frozenset({"targets", "id"}),
+        _parse_cage,
+        _validate_cage,
+        _cage_to_dict,
+        _cage_size,
+        lambda h: h.vertex_maps(),
+    ),
+}
+_HANDLE_FIELDS = {kind: (set(form.required), set(form.optional)) for kind, form in _FORMATS.items()}
+
+
+def _format_of(h: Any) -> _Format | None:
+    """The format of a handle record (of its class or a base), None for anything else."""
+    return next((form for form in _FORMATS.values() if isinstance(h, form.record)), None)
+
+
+def _size(h: Any) -> int:
+    form = _format_of(h)
+    return form.size(h) if form is not None else 1

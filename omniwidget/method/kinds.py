@@ -420,10 +420,11 @@ def kind_of(h: Handle) -> Kind:
     TypeError
         For anything that is not a handle record of a known kind.
     """
-    kind = KINDS.get(type(h))
-    if kind is None:
-        raise TypeError(f"expected a PointHandle, LineHandle or CageHandle, got {type(h).__name__}")
-    return kind
+    for cls in type(h).__mro__:  # a subclass of a record is of its kind
+        kind = KINDS.get(cls)
+        if kind is not None:
+            return kind
+    raise TypeError(f"expected a PointHandle, LineHandle or CageHandle, got {type(h).__name__}")
 
 
 def output_points(doc: Handles, constraints: Constraints) -> list[list[list[float]]]:
