@@ -9,7 +9,7 @@ import pytest
 
 from omniwidget.document.handles import CageHandle, Handle, Handles, LineHandle, Options, PointHandle
 from omniwidget.method.constraints import build_constraints
-from omniwidget.method.kinds import KINDS, kind_of, output_points, reset
+from omniwidget.method.kinds import KINDS, POINT_HOLD, RIM_SAMPLES, kind_of, output_points, reset
 from omniwidget.sphere import coords
 from omniwidget.sphere.moebius import Moebius
 
@@ -68,3 +68,57 @@ def test_reset_keeps_the_handle_as_drawn_and_its_maps_become_the_identity(h):
         assert (drawn.start, drawn.end, drawn.rectify, drawn.targets) == (h.start, h.end, False, None)
     else:
         assert (drawn.vertices, drawn.targets) == (h.vertices, None)
+
+
+def test_a_point_holds_its_map_on_a_disk_only_with_the_still_background():
+    for anchor, rows in ((None, 1), (5.0, 1 + RIM_SAMPLES)):
+        c = build_constraints(Handles((POINT,), Options(anchor=anchor)))
+        assert c.values.shape == (rows, 1) and np.all(c.values == 1.0)
+        distance = coords.angular_distance(coords.xyz_to_lonlat(c.points), POINT.final)
+        np.testing.assert_allclose(np.sort(distance), [0.0] + [POINT_HOLD] * (rows - 1), atol=1e-9)
+        assert len(c.disks) == (rows > 1)
+
+
+def test_a_cage_weighs_its_vertices_linearly_along_each_output_edge():
+    c = build_constraints(Handles((CAGE,), Options(anchor=None)), samples=5)
+    assert [x.label for x in c.controls] == [f"handles[0] (cage vertex {v})" for v in range(3)]
+    assert c.values.shape == (3 * 4, 3)  # 4 samples per edge, the far vertex left to the next edge
+    np.testing.assert_allclose(c.values.sum(axis=1), 1.0)
+    np.testing.assert_allclose(c.values[:4, :2], [[1.0, 0.0], [0.75, 0.25], [0.5, 0.5], [0.25, 0.75]])
+    edge = coords.geodesic(CAGE.targets[0], CAGE.targets[1], np.linspace(0.0, 1.0, 5)[:-1])
+    assert coords.angular_distance(coords.xyz_to_lonlat(c.points[:4]), edge).max() < 1e-9
+
+
+def test_anchors_hold_points_and_cage_edges_where_their_maps_put_them():
+    t = np.linspace(0.0, 1.0, 7)
+    (point,) = kind_of(POINT).anchors(POINT, t)
+    np.testing.assert_allclose(point.outputs, [POINT.final])
+    edges = kind_of(CAGE).anchors(CAGE, t)
+    assert len(edges) == 3 and kind_of(LINE).anchors(LINE, t) == []
+    for v, edge in enumerate(edges):
+        assert coords.angular_distance(edge.outputs[[0, -1]], [CAGE.finals[v], CAGE.finals[(v + 1) % 3]]).max() < 1e-9
+
+
+def test_footprint_covers_input_and_output_and_outline_draws_the_control_points():
+    t = np.linspace(0.0, 1.0, 9)
+    src, out = kind_of(LINE).footprint(LINE, t)
+    np.testing.assert_allclose(out, LINE.moebius()(src))
+    assert len(kind_of(CAGE).footprint(CAGE, t)) == 6
+    arc = lambda a, b: coords.geodesic(a, b, t)  # noqa: E731
+    drawn = kind_of(POINT).outline(POINT, "output", arc)
+    np.testing.assert_allclose(drawn.big_dots, [POINT.final], atol=1e-9)
+    np.testing.assert_allclose([a[-1] for a in drawn.arcs], POINT.target_points()[1:], atol=1e-9)
+    straight = kind_of(LINE).outline(LINE, "output", arc)
+    assert straight.dots[1, 1] == pytest.approx((LINE.start[1] + LINE.end[1]) / 2)  # eq. (4)'s middle
+
+
+def test_carried_turns_what_a_handle_shows_and_leaves_a_rectified_line_to_the_solve():
+    turn = Moebius.rotation((0.0, 90.0), 30.0)  # 30° about the vertical: longitudes + 30
+    moved = kind_of(POINT).carried(POINT, Moebius.identity(), turn)
+    np.testing.assert_allclose(moved.target, (POINT.final[0] + 30.0, POINT.final[1]), atol=1e-9)
+    assert moved.rotation == pytest.approx(POINT.rotation, abs=1e-9)  # a turn about the vertical turns no one
+    assert kind_of(LINE).carried(LINE, Moebius.identity(), turn) is LINE
+    np.testing.assert_allclose(
+        kind_of(EXPLICIT).carried(EXPLICIT, Moebius.identity(), turn).targets, np.add(EXPLICIT.targets, [30.0, 0.0]), atol=1e-9
+    )
+    np.testing.assert_allclose(kind_of(CAGE).carried(CAGE, Moebius.identity(), turn).targets, np.add(CAGE.targets, [30.0, 0.0]), atol=1e-9)
