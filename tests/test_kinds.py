@@ -122,3 +122,19 @@ def test_carried_turns_what_a_handle_shows_and_leaves_a_rectified_line_to_the_so
         kind_of(EXPLICIT).carried(EXPLICIT, Moebius.identity(), turn).targets, np.add(EXPLICIT.targets, [30.0, 0.0]), atol=1e-9
     )
     np.testing.assert_allclose(kind_of(CAGE).carried(CAGE, Moebius.identity(), turn).targets, np.add(CAGE.targets, [30.0, 0.0]), atol=1e-9)
+
+
+def test_input_turned_moves_every_input_position_and_keeps_the_outputs():
+    turn = Moebius.levelling((20.0, 80.0))
+    for h in (POINT, LINE, EXPLICIT, CAGE):
+        turned = kind_of(h).input_turned(h, turn)
+        before, after = kind_of(h).footprint(h, np.zeros(1)), kind_of(turned).footprint(turned, np.zeros(1))
+        first, moved = before[0][:1], after[0][:1]  # the first input position
+        assert coords.angular_distance(moved, turn(first)).max() < 1e-9
+        assert coords.angular_distance(moved, first).max() > 1.0
+        if isinstance(h, PointHandle):
+            assert turned.target == h.target
+        else:
+            assert turned.targets == h.targets
+    same = kind_of(POINT).input_turned(POINT, Moebius.identity())
+    assert coords.angular_distance(same.position, POINT.position) < 1e-9 and same.target == POINT.target

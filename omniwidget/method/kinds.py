@@ -11,7 +11,8 @@ kind object here, found through :data:`KINDS` (record type to kind) by :func:`ki
 - ``reset``: the handle as drawn, before any transformation;
 - ``footprint``: the arcs it marks in the input and the output (how far other handles' reach may go);
 - ``outline``: the arcs and dots that draw it (:func:`omniwidget.io.draw.draw_handles`);
-- ``carried``: its output turned by a rotation of the whole output (a new levelling).
+- ``carried``: its output turned by a rotation of the whole output (a new levelling);
+- ``input_turned``: its input positions turned, its outputs kept (the input levelled).
 
 A new kind of handle is a record in the document layer and one kind object here, added
 to :data:`KINDS` (``docs/handle-kinds.md``).
@@ -196,9 +197,17 @@ class Kind(Protocol):
     def carried(self, h: Any, old: Moebius, turn: Moebius) -> Any:
         """The handle whose output, shown now under ``old``, is turned by ``turn`` (a new levelling)."""
 
+    def input_turned(self, h: Any, turn: Moebius) -> Any:
+        """The handle with its input positions turned by ``turn`` and its outputs kept (the input levelled)."""
+
 
 def _as_pairs(points: NDArray[np.float64]) -> tuple[LonLat, ...]:
     return tuple((float(lon), float(lat)) for lon, lat in points)
+
+
+def _turned(turn: Moebius, p: LonLat) -> LonLat:
+    lon, lat = turn(np.asarray(p, dtype=np.float64))
+    return (float(lon), float(lat))
 
 
 def _ring_arcs(ring: Sequence[LonLat], t: NDArray[np.float64]) -> list[NDArray[np.float64]]:
@@ -258,6 +267,10 @@ class PointKind:
         at_target = turn.local_scale_rotation(final)[1]
         at_position = turn.local_scale_rotation(shown)[1]
         return replace(h, target=target, rotation=_wrap_turn(h.rotation + at_target - at_position))
+
+    def input_turned(self, h: PointHandle, turn: Moebius) -> PointHandle:
+        """Its position turned."""
+        return replace(h, position=_turned(turn, h.position))
 
 
 def _wrap_turn(angle: float) -> float:
@@ -332,6 +345,10 @@ class LineKind:
         start, middle, end = _as_pairs(turn(np.asarray(h.targets, dtype=np.float64)))
         return replace(h, targets=(start, middle, end))
 
+    def input_turned(self, h: LineHandle, turn: Moebius) -> LineHandle:
+        """Its start and end turned."""
+        return replace(h, start=_turned(turn, h.start), end=_turned(turn, h.end))
+
 
 def _line_samples(rows: Rows, piece: int, c: int, out: NDArray[np.float64], *, first: bool, last: bool) -> None:
     """A line part's output samples ``out`` (s, 3) as rows of control ``c``: its own, a joint's, or shared with the next part."""
@@ -402,6 +419,10 @@ class CageKind:
         """Its vertices' output positions turned."""
         finals = h.targets if h.targets is not None else _as_pairs(old(np.asarray(h.vertices, dtype=np.float64)))
         return replace(h, targets=_as_pairs(turn(np.asarray(finals, dtype=np.float64))))
+
+    def input_turned(self, h: CageHandle, turn: Moebius) -> CageHandle:
+        """Its vertices turned."""
+        return replace(h, vertices=tuple(_turned(turn, v) for v in h.vertices))
 
 
 POINT = PointKind()
