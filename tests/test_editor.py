@@ -621,8 +621,8 @@ def test_a_result_that_is_not_finite_is_refused_like_an_error(monkeypatch, where
         real = pipeline.remap_panorama
         monkeypatch.setattr(pipeline, "remap_panorama", lambda *args, **kwargs: real(*args, **kwargs) * np.float32("nan"))
     else:
-        real = module._output_points
-        monkeypatch.setattr(module, "_output_points", lambda *args: [[[float("nan"), 0.0]] * 3 for _ in real(*args)])
+        real = module.output_points
+        monkeypatch.setattr(module, "output_points", lambda *args: [[[float("nan"), 0.0]] * 3 for _ in real(*args)])
     ed.handles = doc(WINDOW_TOP, {**POINT, "scale": 3.0})
     status = ed.wait()
     assert status["state"] == "error" and "not finite numbers" in status["error"]

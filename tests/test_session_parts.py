@@ -20,7 +20,7 @@ from omniwidget.app.detection import Detection
 from omniwidget.app.drag import LiveDrag
 from omniwidget.app.exports import ImageExport, result_location
 from omniwidget.app.history import History
-from omniwidget.app.preview import PreviewJob, ResultStatus, render, reset_handle
+from omniwidget.app.preview import PreviewJob, ResultStatus, render
 from omniwidget.app.session import ANSWERED_WHEN_DONE, COMMANDS, EditingSession
 from omniwidget.app.source import Source
 from omniwidget.app.status import Board, JobStatus, Status, VideoStatus
@@ -293,6 +293,5 @@ def test_the_status_and_its_jobs_hold_only_the_fields_their_records_name(room, t
     assert {"state", "message", "notice", "warnings", "generation", "save"} <= set(s.status)
     assert set(s.status["save"]) <= set(typing.get_type_hints(JobStatus))
     assert set(typing.get_type_hints(VideoStatus)) == {"state", "done", "total", "fps", "path", "message"}
-    assert reset_handle(MOVED) == PointHandle((30.0, 10.0)) and reset_handle(LINE) == LineHandle((-60.0, 30.0), (60.0, 30.0), rectify=False)
     assert Options() == s.document.options
     s.close()

@@ -8,31 +8,29 @@ is a :class:`Rendered` result (the JPEG, the folds' overlay, the handles' output
 
 from __future__ import annotations
 
-import re
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
+from ..document.handles import Handles, PointHandle
 from ..io.draw import display_rgb
-from ..sphere import coords
+from ..method.kinds import output_points
+from ..method.problems import Kind
 from ._latest import Latest
 from .source import DISPLAY_WIDTH, Source, jpeg
 from .status import Board, Status, exception_text
 
 if TYPE_CHECKING:
-    from ..method.constraints import Constraints
     from ..raster.pipeline import Result
 
-__all__ = ["QUALITY_DELAY", "PreviewJob", "Rendered", "ResultStatus", "render", "reset_handle"]
+__all__ = ["QUALITY_DELAY", "PreviewJob", "Rendered", "ResultStatus", "render"]
 
 #: Seconds a result stays on screen before its quality figures are measured (a drag may go on).
 QUALITY_DELAY = 0.3
-_HANDLE_NAME = re.compile(r"handles\[(\d+)\]")
 
 
 def _display_rgb8(image: NDArray, width: int) -> NDArray[np.uint8]:
@@ -56,43 +54,6 @@ def _fold_overlay(mask: NDArray[np.bool_]) -> bytes:
     return data.tobytes() if ok else b""
 
 
-def _output_points(doc: Handles, constraints: Constraints) -> list[list[list[float]]]:
-    """For each handle, where its control points go in the output, ``[lon, lat]``.
-
-    A point: centre, east and west arrow tips. A line: start, middle, end, placed by the
-    rectify-all solve when the document asks for it (a line split at a crossing takes each
-    control point from the piece nearest to it). A cage: its vertices' targets.
-    """
-    pieces: dict[int, list[tuple[Any, NDArray]]] = {}
-    for index, samples in constraints.lines:
-        control = constraints.controls[index]
-        pieces.setdefault(control.handle, []).append((control.moebius, coords.lonlat_to_xyz(samples)))
-    out = []
-    for i, h in enumerate(doc.handles):
-        if isinstance(h, PointHandle):
-            points = h.target_points()
-        elif isinstance(h, LineHandle):
-            points = h.control_points()
-            if i in pieces:
-                for k, p in enumerate(coords.lonlat_to_xyz(points)):
-                    reach = [float((piece[1] @ p).max()) for piece in pieces[i]]
-                    nearest = pieces[i][reach.index(max(reach))]  # the first piece that comes nearest
-                    points[k] = nearest[0](points[k])
-        else:
-            points = np.asarray(h.finals, float)
-        out.append([[round(float(lon), 9), round(float(lat), 9)] for lon, lat in points])
-    return out
-
-
-def reset_handle(h: PointHandle | LineHandle | CageHandle) -> PointHandle | LineHandle | CageHandle:
-    """The handle as drawn, before any transformation."""
-    if isinstance(h, PointHandle):
-        return replace(h, target=None, rotation=0.0, scale=1.0)
-    if isinstance(h, LineHandle):
-        return replace(h, rectify=False, targets=None)
-    return replace(h, targets=None)
-
-
 def _reaches(handles: Any) -> list[float | None]:
     """Per handle, a point's reach in degrees (its ``reach``, or the default the method takes), None for the others.
 
@@ -114,15 +75,9 @@ def _kept_lines(result: Any) -> list[int]:
 
 
 def _conflicts(result: Any, kept: list[int]) -> list[int]:
-    """The handles the result's warnings name as in conflict (a kept line's warning says why it is kept: no conflict)."""
-    pole = tuple(f"handles[{i}] (line) passes " for i in kept)
-    return sorted({int(i) for w in result.warnings if not w.startswith(pole) for i in _HANDLE_NAME.findall(w)})
-
-
-def _warning_kinds(result: Any) -> list[str]:
-    """Per warning of ``result``, what it is about (:attr:`omniwidget.raster.pipeline.Result.warning_kinds`): the editor's groups."""
-    kinds = list(getattr(result, "warning_kinds", ()))
-    return kinds if len(kinds) == len(result.warnings) else ["conflicts"] * len(result.warnings)
+    """The handles the result's problems name (a kept line's problem says why it is kept: no conflict)."""
+    still = set(kept)
+    return sorted({h for p in result.problems if not (p.kind == Kind.POLE_LINE and set(p.handles) <= still) for h in p.handles})
 
 
 @dataclass(frozen=True)
@@ -136,7 +91,7 @@ class Rendered:
 
 def render(result: Result, doc: Handles) -> Rendered:
     """``result`` (of ``doc``) for the browser; FloatingPointError when its outputs or pixels are not finite numbers."""
-    outputs = _output_points(doc, result.constraints)
+    outputs = output_points(doc, result.constraints)
     if not all(np.isfinite(points).all() for points in outputs if points):
         raise FloatingPointError("the handles' outputs are not finite numbers")
     if result.image.dtype.kind == "f" and not np.isfinite(result.image).all():  # the input is finite (check_panorama)
@@ -169,7 +124,7 @@ class ResultStatus:
             seconds=seconds,
             generation=generation,
             warnings=tuple(result.warnings),
-            warning_kinds=tuple(_warning_kinds(result)),
+            warning_kinds=tuple(p.kind for p in result.problems),
             conflicts=tuple(_conflicts(result, kept)),
             kept=tuple(kept),
             reaches=tuple(_reaches(result.handles)),

@@ -39,13 +39,14 @@ from numpy.typing import NDArray
 
 from ..document.handles import Handles, LineHandle, Options, PointHandle, load_handles, save_handles
 from ..errors import HandlesError
+from ..method.kinds import reset as reset_handle
 from ._places import same_file, signature, writable_folder
 from .autosave import AUTOSAVE_SUFFIX, Autosave, autosave_location
 from .detection import Detection
 from .drag import LiveDrag
 from .exports import RESULT_SUFFIX, ImageExport, VideoExport
 from .history import HISTORY, History
-from .preview import PreviewJob, reset_handle
+from .preview import PreviewJob
 from .source import DISPLAY_WIDTH, LAZY_WIDTH, PREVIEW_WIDTH, Source
 from .status import Board, Changes, HistoryCounts, Status
 
