@@ -29,11 +29,12 @@ measures each (:func:`omniwidget.evaluate.quality.summary`): a :class:`Compariso
 notebook as a table.
 
 The first three return a :class:`BaselineResult`, a :class:`~omniwidget.raster.pipeline.Result`
-with the same fields (``image``, ``controls``, ``folds``, ``inverse_map()``,
+whose deformation is a :class:`BaselineDeformation` (the same controls, combined the method's
+way), with the same attributes (``image``, ``controls``, ``folds``, ``inverse_map()``,
 ``inverse_points()``, ``forward_points()``), so every figure of
 :mod:`omniwidget.evaluate.quality` is measured on them as on the paper's method. They use no
-mesh: ``vertices``, ``faces``, ``constrained``, ``prescribed`` and ``weights`` are None,
-and the per-pixel weights are :meth:`BaselineResult.pixel_weights`.
+mesh: ``blend``, ``vertices``, ``faces``, ``constrained``, ``prescribed`` and ``weights``
+are None, and the per-pixel weights are :meth:`BaselineResult.pixel_weights`.
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._checks import whole_number
 from ..document.handles import CageHandle, Handles, Options, PointHandle
 from ..method.constraints import SAMPLES, Constraints, Control, build_constraints
+from ..method.deformation import Deformation
 from ..raster.blend import NEGLIGIBLE, PixelWeights, blended_inverse
 from ..raster.perspective import PerspectiveView, perspective
 from ..raster.pipeline import BlendWarning, Result, warp
@@ -75,6 +77,7 @@ __all__ = [
     "METHODS",
     "RIVALS",
     "SIGMA_PER_RADIUS",
+    "BaselineDeformation",
     "BaselineResult",
     "Comparison",
     "ContentPreservingResult",
@@ -98,12 +101,12 @@ PointInverse = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
-class BaselineResult(Result):
-    """A :class:`~omniwidget.raster.pipeline.Result` computed by a comparison method.
+class BaselineDeformation(Deformation):
+    """The deformation of the sphere a comparison method makes of the document's controls.
 
-    Every field of ``Result`` means what it means there; the mesh fields (``vertices``,
-    ``faces``, ``constrained``, ``prescribed``, ``weights``) are None, because no
-    baseline uses a mesh, and ``warnings`` is empty (fold-overs are in ``folds``).
+    The handles and the controls are those :func:`~omniwidget.method.deformation.deform`
+    builds; no baseline uses a mesh, so there is no ``blend``, and the map at points is the
+    method's own (:meth:`inverse_points`; :meth:`forward_points` searches through it).
 
     Attributes
     ----------
@@ -117,9 +120,9 @@ class BaselineResult(Result):
         :meth:`pixel_weights`).
     """
 
-    method: str = "single_moebius"
-    source_of: PointInverse | None = field(default=None, repr=False)
-    per_pixel: PixelWeights | None = field(default=None, repr=False)
+    method: str
+    source_of: PointInverse = field(repr=False)
+    per_pixel: PixelWeights = field(repr=False)
 
     def inverse_points(self, lonlat: ArrayLike) -> NDArray[np.float64]:
         """The method's inverse map at arbitrary output positions.
@@ -137,8 +140,6 @@ class BaselineResult(Result):
         points = np.asarray(lonlat, dtype=np.float64)
         if points.shape[-1:] != (2,):
             raise ValueError(f"expected [lon, lat] pairs in the last axis, got shape {points.shape}")
-        if self.source_of is None:
-            raise ValueError("this result has no inverse map at points (its source_of is None)")
         return self.source_of(points.reshape(-1, 2)).reshape(points.shape)
 
     def pixel_weights(self, rows: slice | None = None) -> NDArray[np.float64]:
@@ -156,10 +157,39 @@ class BaselineResult(Result):
             :func:`single_moebius`, 0 or 1 for :func:`piecewise_constant`, the Gaussian
             for :func:`gaussian_2017` (these do not sum to 1).
         """
-        rows = slice(None) if rows is None else rows
-        if self.per_pixel is None:
-            raise ValueError("this result has no per-pixel weights (its per_pixel is None)")
-        return np.asarray(self.per_pixel(rows), dtype=np.float64)
+        return np.asarray(self.per_pixel(slice(None) if rows is None else rows), dtype=np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class BaselineResult(Result):
+    """A :class:`~omniwidget.raster.pipeline.Result` computed by a comparison method.
+
+    Every attribute of ``Result`` means what it means there; its deformation is a
+    :class:`BaselineDeformation`, so the mesh attributes (``blend``, ``vertices``, ``faces``,
+    ``constrained``, ``prescribed``, ``weights``) are None, ``inverse_points`` is the
+    method's map, and ``warnings`` is empty (fold-overs are in ``folds``).
+    """
+
+    deformation: BaselineDeformation
+
+    @property
+    def method(self) -> str:
+        """The comparison method's name (:attr:`BaselineDeformation.method`)."""
+        return self.deformation.method
+
+    @property
+    def source_of(self) -> PointInverse:
+        """The method's inverse map at points (:attr:`BaselineDeformation.source_of`)."""
+        return self.deformation.source_of
+
+    @property
+    def per_pixel(self) -> PixelWeights:
+        """The controls' weights on a block of output rows (:attr:`BaselineDeformation.per_pixel`)."""
+        return self.deformation.per_pixel
+
+    def pixel_weights(self, rows: slice | None = None) -> NDArray[np.float64]:
+        """The controls' weights at the output pixels, (h, W, k) (:meth:`BaselineDeformation.pixel_weights`)."""
+        return self.deformation.pixel_weights(rows)
 
 
 # --- shared steps ----------------------------------------------------------------------
@@ -197,20 +227,9 @@ def _grid_rows(width: int, rows: slice) -> NDArray[np.float64]:
     return np.stack(np.meshgrid(lon, lat[rows]), axis=-1)
 
 
-def _finish(
-    image: NDArray,
-    handles: Handles,
-    constraints: Constraints,
-    inverse: GridInverse,
-    width: int,
-    order: Order,
-    timings: dict[str, float],
-    clock: float,
-    method: str,
-    source_of: PointInverse,
-    per_pixel: PixelWeights,
-) -> BaselineResult:
+def _finish(image: NDArray, deformation: BaselineDeformation, inverse: GridInverse, width: int, order: Order, clock: float) -> BaselineResult:
     """Evaluate the inverse map once (float64), resample, measure the fold-overs."""
+    timings = deformation.timings
     inverse_map = inverse_lonlat(inverse, width)
     now = time.perf_counter()
     timings["blend"], clock = now - clock, now
@@ -220,10 +239,7 @@ def _finish(
     timings["resampling"], clock = now - clock, now
     folds = fold_over(inverse_map)
     timings["fold check"] = time.perf_counter() - clock
-    result = BaselineResult(
-        handles=handles, constraints=constraints, timings=timings, image=out, inverse=inverse, source_width=image.shape[1],
-        folds=folds, method=method, source_of=source_of, per_pixel=per_pixel,
-    )  # fmt: skip
+    result = BaselineResult(deformation, out, inverse, image.shape[1], folds, timings=timings)
     inverse_map.flags.writeable = False
     result.__dict__["_inverse_map"] = inverse_map  # Result.inverse_map()'s cache: computed once, here
     return result
@@ -301,10 +317,10 @@ def single_moebius(
         one_hot[..., index] = 1.0
         return one_hot
 
-    return BaselineResult(
-        handles=handles, constraints=constraints, timings=timings, image=out, inverse=grid_inverse(inverse), source_width=image.shape[1],
-        folds=no_folds, method="single_moebius", source_of=source_of, per_pixel=per_pixel,
-    )  # fmt: skip
+    chosen_map = BaselineDeformation(
+        handles=handles, constraints=constraints, timings=timings, method="single_moebius", source_of=source_of, per_pixel=per_pixel
+    )
+    return BaselineResult(chosen_map, out, grid_inverse(inverse), image.shape[1], no_folds, timings=timings)
 
 
 # --- 2. piecewise-constant weights -----------------------------------------------------
@@ -384,7 +400,10 @@ def piecewise_constant(
         return out
 
     inverse = blended_inverse(inverses, per_pixel, precision="double")
-    return _finish(image, handles, constraints, inverse, width, order, timings, clock, "piecewise_constant", source_of, per_pixel)
+    nearest_map = BaselineDeformation(
+        handles=handles, constraints=constraints, timings=timings, method="piecewise_constant", source_of=source_of, per_pixel=per_pixel
+    )
+    return _finish(image, nearest_map, inverse, width, order, clock)
 
 
 # --- 3. the 2017 Gaussian blend of displacements ---------------------------------------
@@ -548,7 +567,10 @@ def gaussian_2017(
         w = weights_at(lonlat)
         return _displaced(lonlat, [m(lonlat) if w[:, j].max() > NEGLIGIBLE else None for j, m in enumerate(inverses)], w)
 
-    return _finish(image, handles, constraints, inverse, width, order, timings, clock, "gaussian_2017", source_of, per_pixel)
+    gaussian_map = BaselineDeformation(
+        handles=handles, constraints=constraints, timings=timings, method="gaussian_2017", source_of=source_of, per_pixel=per_pixel
+    )
+    return _finish(image, gaussian_map, inverse, width, order, clock)
 
 
 # --- the comparison ---------------------------------------------------------------------

@@ -12,8 +12,7 @@ which :meth:`Deformation.inverse_points` evaluates at any direction. The per-pix
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields, replace
-from typing import Protocol
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -34,11 +33,87 @@ from .mesh import adaptive_mesh
 from .problems import Kind, Problem
 from .reach import reach_discs, reach_samples, solved, with_reach
 
-__all__ = ["Deformation", "blended_points", "crossing_handles", "deform", "levelled_handles", "turned"]
+__all__ = ["Blend", "Deformation", "blended_points", "crossing_handles", "deform", "levelled_handles", "turned"]
 
 
 #: An empty set of constraints, to strip a solve's controls of its ladders (:func:`.reach.solved`).
 _EMPTY = Constraints((), np.zeros((0, 3)), np.zeros((0, 0)), ())
+
+
+@dataclass(frozen=True, eq=False, kw_only=True)
+class Blend:
+    """The controls' maps blended by bounded biharmonic weights on the adaptive mesh (Secs. 3.2 and 3.5).
+
+    A deformation has one unless one map does it all; every array is then set, so a single
+    check (``deformation.blend is None``) tells the two cases apart.
+
+    Attributes
+    ----------
+    vertices, faces : ndarray
+        The adaptive mesh, (n, 3) float64 and (m, 3) int64.
+    constrained : ndarray of int64
+        Mesh vertices carrying boundary conditions, (b,).
+    prescribed : ndarray of float64
+        The weights prescribed there, (b, k): the boundary conditions the solver was given
+        (conflicting prescriptions on one vertex already averaged).
+    weights : ndarray of float64
+        The blend's weights per mesh vertex and control, (n, k): the bounded biharmonic
+        weights normalised, and with a still background eased
+        (:func:`~omniwidget.method.background.ease_background`) and spread over the
+        ladders of the point handles that turn or zoom (:func:`~omniwidget.method.reach.with_reach`:
+        their rungs' columns come before the background's, and ``raw_weights`` has none).
+    raw_weights : ndarray of float64
+        The bounded biharmonic weights before the rows were normalised, (n, k'), one column
+        per control of :func:`~omniwidget.method.reach.solved` (no rungs): what
+        :func:`omniwidget.method.bbw.bbw` solved for, kept so that the next solve of a
+        similar document can start from them (``deform(..., previous=...)``).
+    fill : HarmonicFill or None
+        With the still background: the map between the handles, filled in as the most
+        conformal map that agrees with the blend around them (:mod:`.harmonic`); None in
+        the paper's mode or where the handles and the background hold every node.
+    """
+
+    vertices: NDArray[np.float64]
+    faces: NDArray[np.int64]
+    constrained: NDArray[np.int64]
+    prescribed: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    raw_weights: NDArray[np.float64] = field(repr=False)
+    fill: HarmonicFill | None = field(default=None, repr=False)
+
+    def inverse_points(self, inverses: Sequence[Moebius], xyz: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Eq. (2) with the :attr:`fill`, for the controls' inverse maps, at output directions (..., 3): input ``[lon, lat]`` (..., 2)."""
+        shown = blended_points(inverses, self.vertices, self.faces, self.weights, xyz)
+        if self.fill is None:
+            return shown
+        return coords.xyz_to_lonlat(self.fill.apply(coords.xyz_to_lonlat(xyz), coords.lonlat_to_xyz(shown)))
+
+    def weights_at(self, xyz: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The weights interpolated at directions (n, 3) on the mesh, (n, k)."""
+        face, bary = locate_points(self.vertices, self.faces, xyz)
+        return np.asarray(interpolate(self.weights, self.faces, face, bary), dtype=np.float64)
+
+    def solves(self, vertices: NDArray, faces: NDArray, constrained: NDArray, prescribed: NDArray) -> bool:
+        """Whether this blend's weights solved the weights problem of that mesh and those boundary conditions."""
+        return (
+            np.array_equal(self.vertices, vertices)
+            and np.array_equal(self.faces, faces)
+            and np.array_equal(self.constrained, constrained)
+            and np.array_equal(self.prescribed, prescribed)
+        )
+
+    def raw_weights_at(self, vertices: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The raw weights carried to another mesh's vertices (n, 3): taken where a vertex is one of this mesh's, else interpolated."""
+        from scipy.spatial import cKDTree
+
+        # most vertices of a new mesh are vertices of the old one (the same icosphere, refined alike far from what moved)
+        distance, nearest = cKDTree(self.vertices).query(vertices)
+        out = self.raw_weights[nearest]
+        moved = np.flatnonzero(distance > 1e-12)
+        if len(moved):
+            face, bary = locate_points(self.vertices, self.faces, vertices[moved])
+            out[moved] = interpolate(self.raw_weights, self.faces, face, bary)
+        return out
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -52,28 +127,10 @@ class Deformation:
     constraints : Constraints
         The controls (one Möbius map each) and the prescribed weights; with a still
         background, its control is the last.
-    vertices, faces : ndarray or None
-        The adaptive mesh, (n, 3) float64 and (m, 3) int64; None when one map does it all.
-    constrained : ndarray of int64 or None
-        Mesh vertices carrying boundary conditions, (b,).
-    prescribed : ndarray of float64 or None
-        The weights prescribed there, (b, k): the boundary conditions the solver was given
-        (conflicting prescriptions on one vertex already averaged).
-    weights : ndarray of float64 or None
-        The blend's weights per mesh vertex and control, (n, k): the bounded biharmonic
-        weights normalised, and with a still background eased
-        (:func:`~omniwidget.method.background.ease_background`) and spread over the
-        ladders of the point handles that turn or zoom (:func:`~omniwidget.method.reach.with_reach`:
-        their rungs' columns come before the background's, and ``raw_weights`` has none).
-    raw_weights : ndarray of float64 or None
-        The bounded biharmonic weights before the rows were normalised, (n, k'), one column
-        per control of :func:`~omniwidget.method.reach.solved` (no rungs): what
-        :func:`omniwidget.method.bbw.bbw` solved for, kept so that the next solve of a
-        similar document can start from them (``deform(..., previous=...)``).
-    fill : HarmonicFill or None
-        With the still background: the map between the handles, filled in as the most
-        conformal map that agrees with the blend around them (:mod:`.harmonic`); None in
-        the paper's mode or where the handles and the background hold every node.
+    blend : Blend or None
+        The weights on the adaptive mesh, and the fill; None when one map does it all. Its
+        parts read as attributes here too (``vertices``, ``faces``, ``constrained``,
+        ``prescribed``, ``weights``, ``raw_weights``, ``fill``: each None without a blend).
     problems : tuple of Problem
         Conflicts found on the way (:mod:`.problems`): their kind, the handles they name
         and their message.
@@ -83,13 +140,7 @@ class Deformation:
 
     handles: Handles
     constraints: Constraints
-    vertices: NDArray[np.float64] | None = None
-    faces: NDArray[np.int64] | None = None
-    constrained: NDArray[np.int64] | None = None
-    prescribed: NDArray[np.float64] | None = None
-    weights: NDArray[np.float64] | None = None
-    raw_weights: NDArray[np.float64] | None = field(default=None, repr=False)
-    fill: HarmonicFill | None = field(default=None, repr=False)
+    blend: Blend | None = None
     problems: tuple[Problem, ...] = ()
     timings: dict[str, float] = field(default_factory=dict)
 
@@ -97,6 +148,41 @@ class Deformation:
     def warnings(self) -> tuple[str, ...]:
         """The problems' messages, in order."""
         return tuple(p.message for p in self.problems)
+
+    @property
+    def vertices(self) -> NDArray[np.float64] | None:
+        """The blend's mesh vertices (:attr:`Blend.vertices`), or None."""
+        return None if self.blend is None else self.blend.vertices
+
+    @property
+    def faces(self) -> NDArray[np.int64] | None:
+        """The blend's mesh faces (:attr:`Blend.faces`), or None."""
+        return None if self.blend is None else self.blend.faces
+
+    @property
+    def constrained(self) -> NDArray[np.int64] | None:
+        """The blend's constrained vertices (:attr:`Blend.constrained`), or None."""
+        return None if self.blend is None else self.blend.constrained
+
+    @property
+    def prescribed(self) -> NDArray[np.float64] | None:
+        """The blend's boundary conditions (:attr:`Blend.prescribed`), or None."""
+        return None if self.blend is None else self.blend.prescribed
+
+    @property
+    def weights(self) -> NDArray[np.float64] | None:
+        """The blend's weights (:attr:`Blend.weights`), or None."""
+        return None if self.blend is None else self.blend.weights
+
+    @property
+    def raw_weights(self) -> NDArray[np.float64] | None:
+        """The blend's raw weights (:attr:`Blend.raw_weights`), or None."""
+        return None if self.blend is None else self.blend.raw_weights
+
+    @property
+    def fill(self) -> HarmonicFill | None:
+        """The blend's fill between the handles (:attr:`Blend.fill`), or None."""
+        return None if self.blend is None else self.blend.fill
 
     @property
     def controls(self) -> tuple[Control, ...]:
@@ -125,25 +211,22 @@ class Deformation:
             The input ``[lon, lat]`` each position shows.
         """
         xyz = coords.lonlat_to_xyz(lonlat)
-        if self.weights is None or self.vertices is None or self.faces is None:
+        if self.blend is None:
             single = self.moebius if self.moebius is not None else Moebius.identity()
             return coords.xyz_to_lonlat(single.inverse.apply_xyz(xyz))
-        shown = blended_points([c.moebius.inverse for c in self.controls], self.vertices, self.faces, self.weights, xyz)
-        if self.fill is None:
-            return shown
-        return coords.xyz_to_lonlat(self.fill.apply(coords.xyz_to_lonlat(xyz), coords.lonlat_to_xyz(shown)))
+        return self.blend.inverse_points([c.moebius.inverse for c in self.controls], xyz)
 
     def filled(self) -> Deformation:
         """The deformation with its :attr:`fill` made for its controls' maps as they are now (after they were changed)."""
-        if self.handles.options.anchor is None or self.vertices is None or self.faces is None or self.weights is None:
+        if self.handles.options.anchor is None or self.blend is None:
             return self
         if not harmonic.FILL:
-            return replace(self, fill=None)
+            return replace(self, blend=replace(self.blend, fill=None))
         nodes = harmonic.node_directions().reshape(-1, 3)
-        face, bary = locate_points(self.vertices, self.faces, nodes)
-        weights = np.asarray(interpolate(self.weights, self.faces, face, bary), dtype=np.float64)
+        weights = self.blend.weights_at(nodes)
         blend = _blend_sum([c.moebius.inverse for c in self.controls], weights, nodes)
-        return replace(self, fill=harmonic_fill(self.constraints, weights, blend, reach_discs(self.handles)))
+        fill = harmonic_fill(self.constraints, weights, blend, reach_discs(self.handles))
+        return replace(self, blend=replace(self.blend, fill=fill))
 
     def forward_points(self, lonlat: ArrayLike, control: int, iterations: int = 8) -> NDArray[np.float64]:
         """Where input positions land in the output, by inverting the blend near a control.
@@ -174,30 +257,12 @@ class Deformation:
         return coords.xyz_to_lonlat(q)
 
 
-class Solved(Protocol):
-    """An earlier solve whose weights a new one may reuse: a :class:`Deformation` or a warp's ``Result``."""
-
-    # read-only (properties): the solves are frozen dataclasses
-    @property
-    def vertices(self) -> NDArray[np.float64] | None: ...
-    @property
-    def faces(self) -> NDArray[np.int64] | None: ...
-    @property
-    def constrained(self) -> NDArray[np.int64] | None: ...
-    @property
-    def prescribed(self) -> NDArray[np.float64] | None: ...
-    @property
-    def raw_weights(self) -> NDArray[np.float64] | None: ...
-    @property
-    def controls(self) -> tuple[Control, ...]: ...
-
-
 @one_blas_thread
-def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None = None, upright: bool = False) -> Deformation:
+def deform(handles: Handles, *, samples: int = SAMPLES, previous: Deformation | None = None, upright: bool = False) -> Deformation:
     """The paper's method, from a handles document to the blended deformation of the sphere.
 
     One map for everything (no handles, one point or line, handles that do not move) needs
-    no mesh: the deformation has no weights. Otherwise the controls' maps are blended by
+    no mesh: the deformation has no blend. Otherwise the controls' maps are blended by
     bounded biharmonic weights on the adaptive mesh.
 
     Parameters
@@ -205,12 +270,13 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
     handles : Handles
     samples : int
         Points per line and cage edge in the boundary conditions (the paper's 50).
-    previous : Deformation or Result, optional
-        The solve of a similar document (the editor's last preview, say). When it solved the
-        same weights problem (the same mesh and boundary conditions) its weights are taken as
-        they are; when its controls are the same ones, its weights interpolated onto the new
-        mesh start the solver (:func:`omniwidget.method.bbw.bbw`'s ``start``), which then
-        needs fewer steps to the same weights.
+    previous : Deformation, optional
+        The solve of a similar document (the editor's last preview, say: a warp's
+        ``Result.deformation``). When it solved the same weights problem (the same mesh and
+        boundary conditions) its weights are taken as they are; when its controls are the
+        same ones, its weights interpolated onto the new mesh start the solver
+        (:func:`omniwidget.method.bbw.bbw`'s ``start``), which then needs fewer steps to the
+        same weights.
     upright : bool
         The input is levelled: rectified lines within a degree of the vertical are made
         vertical (:func:`~omniwidget.method.constraints.build_constraints`). A document with
@@ -226,35 +292,52 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
     """
     turn = handles.options.levelling()
     if turn is not None:
-        before = turned(previous, turn.inverse, levelled_handles(previous.handles)) if isinstance(previous, Deformation) else None
+        before = turned(previous, turn.inverse, levelled_handles(previous.handles)) if previous is not None else None
         return turned(deform(levelled_handles(handles), samples=samples, previous=before, upright=True), turn, handles)
     timings: dict[str, float] = {}
     lap = Laps(timings)
     constraints = build_constraints(handles, samples=samples, upright=upright)
     lap("constraints")
     problems = _pole_lines(handles, constraints)
+    if _one_map(handles, constraints):
+        return Deformation(handles=handles, constraints=constraints, problems=tuple(problems), timings=timings)
+    problems += _inside_fixed_cages(handles) + _crossing_lines(constraints)
+    constraints, blend, clashes = _blended(handles, constraints, samples, previous, lap)
+    d = Deformation(handles=handles, constraints=constraints, blend=blend, problems=tuple(problems + clashes), timings=timings)
+    if handles.options.anchor is not None:
+        d = _with_fill(d, previous)
+        lap("fill")
+    return d
+
+
+def _one_map(handles: Handles, constraints: Constraints) -> bool:
+    """Whether one map does it all: every control has the same map, and with a still background that map is the identity."""
     maps = [c.moebius for c in constraints.controls]
     single = maps[0] if maps else Moebius.identity()
-    # one map for everything; with a still background only if that map is the identity
-    if all(m.isclose(single) for m in maps[1:]) and (handles.options.anchor is None or single.isclose(Moebius.identity())):
-        return Deformation(handles=handles, constraints=constraints, problems=tuple(problems), timings=timings)
+    return all(m.isclose(single) for m in maps[1:]) and (handles.options.anchor is None or single.isclose(Moebius.identity()))
 
-    problems += _inside_fixed_cages(handles) + _crossing_lines(constraints)
-    extra_samples = reach_samples(handles) if handles.options.anchor is not None else np.empty((0, 3))
+
+def _blended(
+    handles: Handles, constraints: Constraints, samples: int, previous: Deformation | None, lap: Laps
+) -> tuple[Constraints, Blend, list[Problem]]:
+    """The adaptive mesh (Sec. 3.5), its boundary conditions and the bounded biharmonic weights (Sec. 3.2).
+
+    Returns the constraints (with a still background, its control and the point handles'
+    ladders added), the blend (without its fill) and the problems of constraints on the
+    same point.
+    """
+    background = handles.options.anchor
+    extra_samples = reach_samples(handles) if background is not None else np.empty((0, 3))
     check_mesh(len(constraints.points) + len(extra_samples), samples)
     mesh = adaptive_mesh(np.vstack([constraints.points, extra_samples]))
     sample_index = mesh.sample_index[: len(constraints.points)]
     lap("mesh")
     fixed, fixed_values, insides = np.empty(0, dtype=np.int64), np.empty((0, 0)), []
-    if handles.options.anchor is not None:
+    if background is not None:
         insides = cage_insides(constraints, mesh.vertices)
-        constraints, fixed, fixed_values = with_background(constraints, mesh.vertices, handles.options.anchor, insides)
+        constraints, fixed, fixed_values = with_background(constraints, mesh.vertices, background, insides)
     b, bc, clashes = _merge_duplicates(sample_index, constraints.values, constraints.controls, handles)
-    extra = ~np.isin(fixed, b)
-    if extra.any():  # the background's still vertices and the points' disks
-        fixed, first = np.unique(fixed[extra], return_index=True)
-        b = np.concatenate([b, fixed])
-        bc = np.vstack([bc, fixed_values[extra][first]])
+    b, bc = _with_fixed(b, bc, fixed, fixed_values)
     from .bbw import bbw, normalize_rows  # scipy's sparse solvers load with the first solve, not with the package
 
     raw = _previous_weights(previous, mesh.vertices, mesh.faces, b, bc)
@@ -262,27 +345,30 @@ def deform(handles: Handles, *, samples: int = SAMPLES, previous: Solved | None 
         check_weights(len(mesh.vertices), bc.shape[1])
         raw = bbw(mesh.vertices, mesh.faces, b, bc, start=_warm_start(previous, constraints, mesh.vertices))
     weights = normalize_rows(raw)
-    if handles.options.anchor is not None:
+    if background is not None:
         weights = ease_background(carry_insides(weights, insides), BACKGROUND_EASE)
         constraints, weights = with_reach(handles, constraints, mesh.vertices, weights)
     lap("weights")
-    d = Deformation(
-        handles=handles,
-        constraints=constraints,
-        vertices=mesh.vertices,
-        faces=mesh.faces,
-        constrained=b,
-        prescribed=bc,
-        weights=weights,
-        raw_weights=raw,
-        problems=tuple(problems + clashes),
-        timings=timings,
-    )
-    if handles.options.anchor is not None:
-        same = harmonic.FILL and previous is not None and raw is previous.raw_weights and _same_maps(previous.controls, constraints.controls)
-        d = replace(d, fill=getattr(previous, "fill", None)) if same else d.filled()
-        lap("fill")
-    return d
+    blend = Blend(vertices=mesh.vertices, faces=mesh.faces, constrained=b, prescribed=bc, weights=weights, raw_weights=raw)
+    return constraints, blend, clashes
+
+
+def _with_fixed(b: NDArray[np.int64], bc: NDArray[np.float64], fixed: NDArray[np.int64], values: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+    """The boundary conditions with the still vertices (the background's, the points' disks) not already constrained added."""
+    extra = ~np.isin(fixed, b)
+    if not extra.any():
+        return b, bc
+    fixed, first = np.unique(fixed[extra], return_index=True)
+    return np.concatenate([b, fixed]), np.vstack([bc, values[extra][first]])
+
+
+def _with_fill(d: Deformation, previous: Deformation | None) -> Deformation:
+    """The deformation with its fill: the previous solve's when it kept that solve's weights and maps, else made anew."""
+    if previous is None or previous.blend is None or d.blend is None or not harmonic.FILL:
+        return d.filled()
+    if d.blend.raw_weights is not previous.blend.raw_weights or not _same_maps(previous.controls, d.controls):
+        return d.filled()
+    return replace(d, blend=replace(d.blend, fill=previous.blend.fill))
 
 
 def levelled_handles(handles: Handles) -> Handles:
@@ -319,14 +405,14 @@ def turned(d: Deformation, turn: Moebius, handles: Handles) -> Deformation:
     the turn becomes the one control (the still background's place).
     """
     back = turn.inverse
-    base = d if type(d) is Deformation else Deformation(**{f.name: getattr(d, f.name) for f in fields(Deformation)})  # a Result: its solve only
     controls = tuple(replace(k, moebius=k.moebius @ turn) for k in d.controls) or (Control(turn, BACKGROUND, "the levelling turn"),)
-    lines = tuple((k, back(samples)) for k, samples in base.constraints.lines)
-    fill = base.fill
-    if fill is not None:
-        blend, filled = (back.apply_xyz(v.reshape(-1, 3)).reshape(v.shape) for v in (fill.blend, fill.filled))
-        fill = replace(fill, blend=blend, filled=filled)
-    return replace(base, handles=handles, constraints=replace(base.constraints, controls=controls, lines=lines), fill=fill)
+    lines = tuple((k, back(samples)) for k, samples in d.constraints.lines)
+    blend = d.blend
+    if blend is not None and blend.fill is not None:
+        fill = blend.fill
+        shown, filled = (back.apply_xyz(v.reshape(-1, 3)).reshape(v.shape) for v in (fill.blend, fill.filled))
+        blend = replace(blend, fill=replace(fill, blend=shown, filled=filled))
+    return replace(d, handles=handles, constraints=replace(d.constraints, controls=controls, lines=lines), blend=blend)
 
 
 def _same_maps(before: Sequence[Control], now: Sequence[Control]) -> bool:
@@ -490,39 +576,20 @@ def _crossing_lines(constraints: Constraints) -> list[Problem]:
     ]
 
 
-def _previous_weights(previous: Solved | None, vertices: NDArray, faces: NDArray, b: NDArray, bc: NDArray) -> NDArray[np.float64] | None:
-    """The previous warp's raw weights when it solved exactly this weights problem, else None."""
-    if previous is None or previous.raw_weights is None:
+def _previous_weights(previous: Deformation | None, vertices: NDArray, faces: NDArray, b: NDArray, bc: NDArray) -> NDArray[np.float64] | None:
+    """The previous solve's raw weights when it solved exactly this weights problem, else None."""
+    if previous is None or previous.blend is None or not previous.blend.solves(vertices, faces, b, bc):
         return None
-    if previous.vertices is None or previous.faces is None or previous.constrained is None or previous.prescribed is None:
-        return None  # no mesh problem to compare with
-    same = (
-        np.array_equal(previous.vertices, vertices)
-        and np.array_equal(previous.faces, faces)
-        and np.array_equal(previous.constrained, b)
-        and np.array_equal(previous.prescribed, bc)
-    )
-    return previous.raw_weights if same else None
+    return previous.blend.raw_weights
 
 
-def _warm_start(previous: Solved | None, constraints: Constraints, vertices: NDArray) -> NDArray[np.float64] | None:
-    """The previous warp's raw weights interpolated at the new mesh's vertices, when its controls are the same ones."""
-    if previous is None or previous.raw_weights is None:
+def _warm_start(previous: Deformation | None, constraints: Constraints, vertices: NDArray) -> NDArray[np.float64] | None:
+    """The previous solve's raw weights interpolated at the new mesh's vertices, when its controls are the same ones."""
+    if previous is None or previous.blend is None:
         return None
     before = solved(replace(_EMPTY, controls=previous.controls, values=np.zeros((0, len(previous.controls))))).controls
     if len(before) != len(constraints.controls):
         return None
-    if previous.vertices is None or previous.faces is None:  # weights without their mesh: nothing to interpolate
-        return None
     if any(p.handle != c.handle or p.label != c.label for p, c in zip(before, constraints.controls, strict=True)):
         return None
-    from scipy.spatial import cKDTree
-
-    # most vertices of the new mesh are vertices of the old one (the same icosphere, refined alike far from what moved)
-    distance, nearest = cKDTree(previous.vertices).query(vertices)
-    out = previous.raw_weights[nearest]
-    moved = np.flatnonzero(distance > 1e-12)
-    if len(moved):
-        face, bary = locate_points(previous.vertices, previous.faces, vertices[moved])
-        out[moved] = interpolate(previous.raw_weights, previous.faces, face, bary)
-    return out
+    return previous.blend.raw_weights_at(vertices)

@@ -32,6 +32,7 @@ from ..sphere.moebius import Moebius
 from . import _kernels
 
 if TYPE_CHECKING:
+    from ..method.deformation import Blend
     from .pipeline import Result
 
 __all__ = ["LiveBasis", "live_basis"]
@@ -138,6 +139,23 @@ def _region(reach: NDArray[np.bool_]) -> tuple[slice, NDArray[np.int64]]:
     return slice(int(rows[0]), int(rows[-1]) + 1), (end + 1 + np.arange(width - longest)) % width
 
 
+def _split_sum(
+    blend: Blend, inverses: Sequence[Moebius], moving: tuple[int, ...], width: int
+) -> tuple[NDArray[np.floating], NDArray[np.floating]]:
+    """``F`` (h, w, 3) and the moving controls' weights (h, w, c) at every pixel of the whole grid, from the blend's mesh."""
+    if _kernels.available():
+        face, planes = locate_faces(blend.vertices, blend.faces, width)
+        return _kernels.split_sum(face, planes, blend.faces, blend.weights, inverses, moving)
+    lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
+    face, bary = locate_grid(blend.vertices, blend.faces, width)
+    w = interpolate(np.asarray(blend.weights, np.float32), blend.faces, face, bary)
+    fixed = np.zeros(face.shape + (3,), np.float64)
+    for j, m in enumerate(inverses):
+        if j not in moving and w[..., j].max() > 0:
+            fixed += w[..., j, None] * _unit_images(m, lon, lat)
+    return fixed, w[..., list(moving)]
+
+
 def live_basis(result: Result, handle: int, region_weight: float | None = REGION_WEIGHT) -> LiveBasis:
     """The basis of a live drag of one handle, on the grid of ``result.image``, cut to where the handle weighs.
 
@@ -168,32 +186,23 @@ def live_basis(result: Result, handle: int, region_weight: float | None = REGION
     width = result.image.shape[1]
     inverses = [c.moebius.inverse for c in controls]
     lon, lat = (np.radians(x) for x in coords.grid_lonlat(width))
-    vertices, faces = result.vertices, result.faces
+    blend = result.blend
     fixed: NDArray[np.floating]
-    if result.weights is None or vertices is None or faces is None:  # one map does it all: every control weighs the same
+    if blend is None:  # one map does it all: every control weighs the same
         share = 1.0 / len(controls)
         fixed = (share * (len(controls) - len(moving))) * _unit_images(inverses[0], lon, lat)
         weights = np.full(fixed.shape[:2] + (len(moving),), share, np.float32)
-    elif _kernels.available():
-        face, planes = locate_faces(vertices, faces, width)
-        fixed, weights = _kernels.split_sum(face, planes, faces, result.weights, inverses, moving)
     else:
-        face, bary = locate_grid(vertices, faces, width)
-        w = interpolate(np.asarray(result.weights, np.float32), faces, face, bary)
-        fixed = np.zeros(face.shape + (3,), np.float64)
-        for j, m in enumerate(inverses):
-            if j not in moving and w[..., j].max() > 0:
-                fixed += w[..., j, None] * _unit_images(m, lon, lat)
-        weights = w[..., list(moving)]
+        fixed, weights = _split_sum(blend, inverses, moving, width)
     if region_weight is None:
         rows, cols = slice(0, width // 2), np.arange(width)
     else:
         rows, cols = _region(weights.max(axis=-1) > region_weight)
     fill_share: NDArray[np.float64] = np.ones((rows.stop - rows.start, len(cols)))
     offset: NDArray[np.float64] = np.zeros(fill_share.shape + (3,))
-    if result.fill is not None:
+    if blend is not None and blend.fill is not None:
         lon_deg, lat_deg = coords.grid_lonlat(width)
-        fill_share, offset, _ = result.fill.affine(np.stack(np.meshgrid(lon_deg[cols], lat_deg[rows]), axis=-1))
+        fill_share, offset, _ = blend.fill.affine(np.stack(np.meshgrid(lon_deg[cols], lat_deg[rows]), axis=-1))
     return LiveBasis(
         np.ascontiguousarray(fixed[rows][:, cols], np.float32),
         np.ascontiguousarray(weights[rows][:, cols], np.float32),

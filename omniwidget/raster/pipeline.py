@@ -13,20 +13,21 @@ import math
 import threading
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .._blas import one_blas_thread
 from .._checks import whole_number
 from .._timing import Laps
 from ..document.handles import Handles
 from ..method.background import BACKGROUND
-from ..method.constraints import POINT_HOLD, SAMPLES, Control
-from ..method.deformation import Deformation, deform
-from ..method.locate import interpolate, locate_grid, locate_points
+from ..method.constraints import POINT_HOLD, SAMPLES, Constraints, Control
+from ..method.deformation import Blend, Deformation, deform
+from ..method.harmonic import HarmonicFill
+from ..method.locate import interpolate, locate_grid
 from ..method.problems import Kind, Problem
 from ..sphere import coords
 from ..sphere.moebius import Moebius
@@ -152,17 +153,20 @@ _CATEGORIES: dict[str, type[BlendWarning]] = {
 }
 
 
-@dataclass(frozen=True, eq=False, kw_only=True)
-class Result(Deformation):
+@dataclass(frozen=True, eq=False)
+class Result:
     """Everything a warp computed: the method's :class:`~omniwidget.method.deformation.Deformation` and the image.
 
-    Every attribute of the deformation is here (``handles``, ``constraints``, the mesh
-    ``vertices`` and ``faces``, ``constrained``, ``prescribed``, ``weights``,
-    ``raw_weights``; ``warnings`` also has the fold-overs found; ``timings`` every stage's),
-    and its methods (``controls``, ``moebius``, ``inverse_points``, ``forward_points``).
+    The deformation's attributes and methods read here too, each delegated to it
+    (``handles``, ``constraints``, ``controls``, ``moebius``, the ``blend`` and its parts
+    ``vertices``, ``faces``, ``constrained``, ``prescribed``, ``weights``, ``raw_weights``
+    and ``fill``, ``inverse_points``, ``forward_points``); ``problems``, ``warnings`` and
+    ``timings`` are the deformation's and the warp's.
 
     Attributes
     ----------
+    deformation : Deformation
+        What the method computed; where handles gave way, with their maps relaxed.
     image : ndarray, shape (H, W[, C])
         The output panorama, in the input's dtype.
     inverse : GridInverse
@@ -177,13 +181,95 @@ class Result(Deformation):
         The source pixel coordinates the output was resampled by (the blend, evaluated on a
         coarse grid where that is exact enough); None for a single map, which is resampled
         exactly. :meth:`placed_map` turns them into ``[lon, lat]``.
+    problems : tuple of Problem
+        The deformation's problems, then the warp's (handles giving way, fold-overs).
+    timings : dict of str to float
+        Seconds per stage, the deformation's steps and the warp's.
     """
 
+    deformation: Deformation
     image: NDArray
     inverse: GridInverse = field(repr=False)
     source_width: int
     folds: FoldOver
     coordinates: NDArray[np.float32] | None = field(default=None, repr=False)
+    problems: tuple[Problem, ...] = ()
+    timings: dict[str, float] = field(default_factory=dict)
+
+    # --- the deformation's, delegated ---
+    @property
+    def handles(self) -> Handles:
+        """The document (:attr:`Deformation.handles`)."""
+        return self.deformation.handles
+
+    @property
+    def constraints(self) -> Constraints:
+        """The controls and the prescribed weights (:attr:`Deformation.constraints`)."""
+        return self.deformation.constraints
+
+    @property
+    def controls(self) -> tuple[Control, ...]:
+        """The controls, in the order of the weights' columns (:attr:`Deformation.controls`)."""
+        return self.deformation.controls
+
+    @property
+    def moebius(self) -> Moebius | None:
+        """The single map when all controls share one, else None (:attr:`Deformation.moebius`)."""
+        return self.deformation.moebius
+
+    @property
+    def blend(self) -> Blend | None:
+        """The weights on the adaptive mesh and the fill (:class:`~omniwidget.method.deformation.Blend`); None for a single map."""
+        return self.deformation.blend
+
+    @property
+    def vertices(self) -> NDArray[np.float64] | None:
+        """The adaptive mesh's vertices, (n, 3), or None (:attr:`Blend.vertices`)."""
+        return self.deformation.vertices
+
+    @property
+    def faces(self) -> NDArray[np.int64] | None:
+        """The adaptive mesh's faces, (m, 3), or None (:attr:`Blend.faces`)."""
+        return self.deformation.faces
+
+    @property
+    def constrained(self) -> NDArray[np.int64] | None:
+        """Mesh vertices carrying boundary conditions, (b,), or None (:attr:`Blend.constrained`)."""
+        return self.deformation.constrained
+
+    @property
+    def prescribed(self) -> NDArray[np.float64] | None:
+        """The weights prescribed there, (b, k), or None (:attr:`Blend.prescribed`)."""
+        return self.deformation.prescribed
+
+    @property
+    def weights(self) -> NDArray[np.float64] | None:
+        """The blend's weights per mesh vertex and control, (n, k), or None (:attr:`Blend.weights`)."""
+        return self.deformation.weights
+
+    @property
+    def raw_weights(self) -> NDArray[np.float64] | None:
+        """The bounded biharmonic weights before normalising, or None (:attr:`Blend.raw_weights`)."""
+        return self.deformation.raw_weights
+
+    @property
+    def fill(self) -> HarmonicFill | None:
+        """The map filled in between the handles, or None (:attr:`Blend.fill`)."""
+        return self.deformation.fill
+
+    def inverse_points(self, lonlat: ArrayLike) -> NDArray[np.float64]:
+        """The input ``[lon, lat]`` (degrees, (..., 2)) that output positions ``lonlat`` (..., 2) show (:meth:`Deformation.inverse_points`)."""
+        return self.deformation.inverse_points(lonlat)
+
+    def forward_points(self, lonlat: ArrayLike, control: int, iterations: int = 8) -> NDArray[np.float64]:
+        """Where input positions land in the output, searched from a control's map (:meth:`Deformation.forward_points`)."""
+        return self.deformation.forward_points(lonlat, control, iterations)
+
+    # --- the problems, read from the records ---
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The problems' messages, in order."""
+        return tuple(p.message for p in self.problems)
 
     @property
     def warning_kinds(self) -> tuple[str, ...]:
@@ -273,25 +359,30 @@ class Result(Deformation):
         return out
 
 
-def _exact_inverse(
-    inverses: list[Moebius], vertices: NDArray[np.float64], faces: NDArray[np.int64], weights: NDArray[np.float64], width: int
-) -> GridInverse:
-    """The blended map at every pixel of the output grid, in double precision, located on the mesh when first asked."""
+def _exact_inverse(inverses: list[Moebius], blend: Blend, width: int) -> GridInverse:
+    """The blended map (without the fill) at every pixel of the output grid, in double precision, located on the mesh when first asked."""
     lock = threading.Lock()
     cache: list[GridInverse] = []
 
     def fn(lon: NDArray, lat: NDArray, rows: slice) -> tuple[NDArray, NDArray]:
         with lock:
             if not cache:
-                face, bary = locate_grid(vertices, faces, width)
-                cache.append(mesh_blended_inverse(inverses, faces, weights, face, bary))
+                face, bary = locate_grid(blend.vertices, blend.faces, width)
+                cache.append(mesh_blended_inverse(inverses, blend.faces, blend.weights, face, bary))
         return cache[0](lon, lat, rows)
 
     return fn
 
 
+def _blend_of(d: Deformation | Result) -> Blend:
+    """The deformation's blend; a clear error for one that a single map does all of."""
+    if d.blend is None:
+        raise ValueError("the deformation has no weights: one Möbius map does it all (warp_moebius)")
+    return d.blend
+
+
 def blend_coordinates(
-    deformation: Deformation, width: int, src_width: int, *, exact: bool = False, timings: dict[str, float] | None = None
+    deformation: Deformation | Result, width: int, src_width: int, *, exact: bool = False, timings: dict[str, float] | None = None
 ) -> tuple[NDArray[np.float32], FoldOver, NDArray[np.floating] | None]:
     """The deformation's inverse map on a ``width`` wide output grid, as source pixel coordinates for resampling.
 
@@ -302,8 +393,8 @@ def blend_coordinates(
 
     Parameters
     ----------
-    deformation : Deformation
-        With weights (not a single map).
+    deformation : Deformation or Result
+        With a blend (not a single map).
     width, src_width : int
         Output and source widths.
     exact : bool
@@ -322,35 +413,34 @@ def blend_coordinates(
         each control's strongest weight there), for naming the handles in a warning; None
         when it folds less than :data:`FOLD_WARNING_AREA`.
     """
-    d = deformation
-    if d.vertices is None or d.faces is None or d.weights is None:
-        raise ValueError("the deformation has no weights: one Möbius map does it all (warp_moebius)")
+    blend = _blend_of(deformation)
+    vertices, faces, weights = blend.vertices, blend.faces, blend.weights
     laps = Laps(timings)
-    inverses = [c.moebius.inverse for c in d.controls]
+    inverses = [c.moebius.inverse for c in deformation.controls]
     compiled = _kernels.available()
     if compiled:
         step = 1 if exact else coarse_step(width)
         if step > 1:
             coordinates, face, planes = sampled_coordinates(
-                inverses, d.vertices, d.faces, d.weights, width, src_width, step, d.constraints.points
+                inverses, vertices, faces, weights, width, src_width, step, deformation.constraints.points
             )
         else:
-            coordinates, face, planes = _kernels.walk_blend(d.vertices, d.faces, d.weights, inverses, width, src_width)
+            coordinates, face, planes = _kernels.walk_blend(vertices, faces, weights, inverses, width, src_width)
     else:
-        face, bary = locate_grid(d.vertices, d.faces, width)
+        face, bary = locate_grid(vertices, faces, width)
         laps("locate")
-        coordinates = remap_coordinates(blended_inverse(inverses, mesh_pixel_weights(d.faces, d.weights, face, bary)), width, src_width)
+        coordinates = remap_coordinates(blended_inverse(inverses, mesh_pixel_weights(faces, weights, face, bary)), width, src_width)
     laps("blend")
-    if d.fill is not None:
-        fill_coordinates(coordinates, d.fill, src_width)
+    if blend.fill is not None:
+        fill_coordinates(coordinates, blend.fill, src_width)
         laps("fill pixels")
     folds = fold_of_coordinates(coordinates, src_width)
     at_folds: NDArray[np.floating] | None = None
     if folds.area > 0 and compiled:
         where = folds.mask if step == 1 else np.asarray(folds.mask.reshape(face.shape[0], step, face.shape[1], step).any(axis=(1, 3)))
-        at_folds = _kernels.strongest_weights(where, face, planes, d.faces, d.weights)[None]
+        at_folds = _kernels.strongest_weights(where, face, planes, faces, weights)[None]
     elif folds.area > 0:
-        at_folds = interpolate(d.weights, d.faces, face[folds.mask], bary[folds.mask])
+        at_folds = interpolate(weights, faces, face[folds.mask], bary[folds.mask])
     laps("fold check")
     return coordinates, folds, at_folds
 
@@ -430,9 +520,47 @@ def _held_pixels(d: Deformation, width: int) -> NDArray[np.bool_]:
     return mask
 
 
-def _give_way(
-    d: Deformation, folds: FoldOver, width: int, src_width: int, exact: bool
-) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch], Problem]:
+@dataclass(frozen=True, eq=False)
+class _Placed:
+    """Where the output's pixels come from at one stage of the warp.
+
+    Attributes
+    ----------
+    deformation : Deformation
+        With a blend; where handles gave way, with their maps relaxed.
+    coordinates : ndarray of float32, shape (H, W, 2)
+        Source pixel coordinates (:func:`blend_coordinates`), with the untangled windows written in.
+    folds : FoldOver
+        Their fold check.
+    patches : tuple of Patch
+        The windows untangled, in the order they were written.
+    """
+
+    deformation: Deformation
+    coordinates: NDArray[np.float32]
+    folds: FoldOver
+    patches: tuple[Patch, ...] = ()
+
+
+def _unfolded(placed: _Placed, width: int, src_width: int, exact: bool) -> tuple[_Placed, list[Problem]]:
+    """Every fold untangled in windows (:func:`_untangled`), and where no window clears it the handles there given way.
+
+    Returns the pixels' places and the problems of the handles that gave way (:func:`_give_way`)
+    and of the lines through a window that does not keep them (:func:`_lines_given_way`).
+    """
+    d = placed.deformation
+    lines, keep = _kept(d, width)
+    coordinates, folds, patches = _untangled(placed.coordinates, placed.folds, src_width, keep)
+    placed = _Placed(d, coordinates, folds, tuple(patches))
+    problems: list[Problem] = []
+    if folds.area > 0 and GIVE_WAY:  # folds no window clears: the handles there give way as little as clears them
+        placed, given = _give_way(d, folds, width, src_width, exact)
+        problems.append(given)
+        lines = _line_pixels(placed.deformation, width)
+    return placed, problems + _lines_given_way(d.handles, lines, placed.patches)
+
+
+def _give_way(d: Deformation, folds: FoldOver, width: int, src_width: int, exact: bool) -> tuple[_Placed, Problem]:
     """The deformation with the maps of the handles where it still folds relaxed toward the background's, as little as clears it.
 
     The controls whose weight is at least 0.1 at a turned-over pixel are relaxed together:
@@ -441,38 +569,36 @@ def _give_way(
     the first ``t`` of :data:`GIVE_WAY` whose blend, untangled, turns nothing over is kept; at
     ``t = 0`` those maps are the still background's and the blend is the background's there; if
     it still folds then, every handle gives way (the identity folds nothing).
-    Returns the deformation, the coordinates, their fold check, the untangled windows and the
-    problem that says who gave way and how far.
+    Returns the relaxed deformation's pixels, untangled, and the problem that says who gave
+    way and how far.
     """
-    if d.vertices is None or d.faces is None or d.weights is None:
-        raise ValueError("the deformation has no weights: one Möbius map does it all (warp_moebius)")
     lon, lat = coords.grid_lonlat(width)
     rows, cols = np.nonzero(folds.mask)
-    face, bary = locate_points(d.vertices, d.faces, coords.lonlat_to_xyz(np.stack([lon[cols], lat[rows]], axis=-1)))
-    strong = interpolate(d.weights, d.faces, face, bary).max(axis=0) >= 0.1
+    strong = _blend_of(d).weights_at(coords.lonlat_to_xyz(np.stack([lon[cols], lat[rows]], axis=-1))).max(axis=0) >= 0.1
     involved = {int(j) for j in np.flatnonzero(strong) if d.controls[j].handle != BACKGROUND}
 
     turn = d.handles.options.levelling() or Moebius.identity()  # the still background's map: the input levelled, or as it is
 
-    def attempt(t: float) -> tuple[Deformation, NDArray[np.float32], FoldOver, list[Patch]]:
+    def attempt(t: float) -> _Placed:
         controls = tuple(replace(c, moebius=(c.moebius @ turn.inverse).power(t) @ turn) if j in involved else c for j, c in enumerate(d.controls))
         relaxed = replace(d, constraints=replace(d.constraints, controls=controls)).filled()
         coordinates, turned, _ = blend_coordinates(relaxed, width, src_width, exact=exact)
-        return (relaxed, *_untangled(coordinates, turned, src_width, _kept(relaxed, width)[1]))
+        untangled, left, patches = _untangled(coordinates, turned, src_width, _kept(relaxed, width)[1])
+        return _Placed(relaxed, untangled, left, tuple(patches))
 
     for t in GIVE_WAY:  # the first share whose blend, untangled, turns nothing over
-        relaxed, coordinates, left, patches = attempt(t)
-        if left.area == 0:
+        placed = attempt(t)
+        if placed.folds.area == 0:
             break
     else:  # still folding with those maps the identity: every handle gives way (the identity everywhere folds nothing)
         involved = {j for j, c in enumerate(d.controls) if c.handle != BACKGROUND}
-        relaxed, coordinates, left, patches = attempt(0.0)
+        placed = attempt(0.0)
     given = sorted({int(d.controls[j].handle) for j in involved})
     names = " and ".join(f"handles[{h}] ({d.handles.handles[h].kind})" for h in given)
     said = f"{names} give way where their blend folded beyond untangling: their maps are taken {100 * t:.0f}% of the way"
-    if left.area > 0:
-        said += f", and {100 * left.area:.3g}% of the sphere is still shown turned over"
-    return relaxed, coordinates, left, patches, Problem(Kind.GIVE_WAY, tuple(given), said)
+    if placed.folds.area > 0:
+        said += f", and {100 * placed.folds.area:.3g}% of the sphere is still shown turned over"
+    return placed, Problem(Kind.GIVE_WAY, tuple(given), said)
 
 
 def _patch_count(mask: NDArray[np.bool_]) -> int:
@@ -557,42 +683,38 @@ def warp(
     if previous is not None and not isinstance(previous, Result):
         raise TypeError(f"previous must be a Result of an earlier warp, got {type(previous).__name__}")
     width = check_warp_arguments(image, width, order)
-    d = deform(handles, samples=samples, previous=previous)
-    timings, problems = dict(d.timings), list(d.problems)
-    if d.weights is None or d.vertices is None or d.faces is None:
-        laps = Laps(timings)
-        single = d.moebius or Moebius.identity()
-        out = warp_moebius(image, single, width=width, order=order).image
-        inverse, folds, coordinates = grid_inverse(single.inverse), FoldOver.none(out.shape), None
-        laps("resampling")
-    else:
-        coordinates, folds, at_folds = blend_coordinates(d, width, image.shape[1], exact=exact, timings=timings)
-        mesh = d.vertices, d.faces, d.weights  # the same whatever gives way below (only maps are relaxed)
-        patches: list[Patch] = []
-        laps = Laps(timings)
-        if folds.area > 0 and handles.options.anchor is not None:  # the default mode never folds
-            lines, keep = _kept(d, width)
-            untangled, left, patches = _untangled(coordinates, folds, image.shape[1], keep)
-            if left.area > 0 and GIVE_WAY:  # folds no window clears: the handles there give way as little as clears them
-                d, untangled, left, patches, given = _give_way(d, left, width, image.shape[1], exact)
-                problems.append(given)
-                lines = _line_pixels(d, width)
-            coordinates, folds = untangled, left
-            problems += _lines_given_way(handles, lines, patches)
-            laps("untangle")
-        inverse = patched_inverse(filled_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], *mesh, width), d.fill), patches)
-        out = remap_panorama(image, coordinates, order)
-        laps("resampling")
-        if at_folds is not None and (patches or folds.area >= FOLD_WARNING_AREA):
-            problems.append(_fold_warning(handles, d.controls, at_folds, folds.area, patches, width))
-    for p in problems if warn else ():
+    d = deform(handles, samples=samples, previous=None if previous is None else previous.deformation)
+    timings = dict(d.timings)
+    result = _warped_by_one_map(image, d, width, order, timings) if d.blend is None else _warped_by_blend(image, d, width, order, exact, timings)
+    for p in result.problems if warn else ():
         warnings.warn(p.message, _CATEGORIES[p.kind], stacklevel=2)
-    kept = {f.name: getattr(d, f.name) for f in fields(Deformation)}
-    return Result(
-        **{**kept, "problems": tuple(problems), "timings": timings},
-        image=out,
-        inverse=inverse,
-        source_width=image.shape[1],
-        folds=folds,
-        coordinates=coordinates,
-    )
+    return result
+
+
+def _warped_by_one_map(image: NDArray, d: Deformation, width: int, order: Order, timings: dict[str, float]) -> Result:
+    """The warp by a deformation whose controls share one map: that map applied exactly, without a mesh."""
+    laps = Laps(timings)
+    single = d.moebius or Moebius.identity()
+    out = warp_moebius(image, single, width=width, order=order).image
+    laps("resampling")
+    return Result(d, out, grid_inverse(single.inverse), image.shape[1], FoldOver.none(out.shape), problems=d.problems, timings=timings)
+
+
+def _warped_by_blend(image: NDArray, d: Deformation, width: int, order: Order, exact: bool, timings: dict[str, float]) -> Result:
+    """The warp by a blend: eq. (2) at every output pixel, its folds untangled (the default mode), resampled, the folds left reported."""
+    src_width = image.shape[1]
+    coordinates, folds, at_folds = blend_coordinates(d, width, src_width, exact=exact, timings=timings)
+    placed, problems = _Placed(d, coordinates, folds), list(d.problems)
+    laps = Laps(timings)
+    if folds.area > 0 and d.handles.options.anchor is not None:  # the default mode never folds
+        placed, found = _unfolded(placed, width, src_width, exact)
+        problems += found
+        laps("untangle")
+    d = placed.deformation  # its mesh and weights are the solve's whatever gave way (only maps are relaxed)
+    blend = _blend_of(d)
+    inverse = patched_inverse(filled_inverse(_exact_inverse([c.moebius.inverse for c in d.controls], blend, width), blend.fill), placed.patches)
+    out = remap_panorama(image, placed.coordinates, order)
+    laps("resampling")
+    if at_folds is not None and (placed.patches or placed.folds.area >= FOLD_WARNING_AREA):
+        problems.append(_fold_warning(d.handles, d.controls, at_folds, placed.folds.area, placed.patches, width))
+    return Result(d, out, inverse, src_width, placed.folds, placed.coordinates, problems=tuple(problems), timings=timings)

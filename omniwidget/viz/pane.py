@@ -62,6 +62,7 @@ from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
 from ..io.draw import display_rgb, draw_polyline
 from ..method.background import BACKGROUND
 from ..method.constraints import SAMPLES
+from ..method.deformation import Blend
 from ..raster.pipeline import Result
 from ..sphere import coords
 
@@ -111,17 +112,17 @@ def _check_result(result: object) -> Result:
     return _result_mesh(result)[0]
 
 
-def _result_mesh(result: object) -> tuple[Result, NDArray[np.float64], NDArray[np.int64], NDArray[np.float64]]:
-    """``result`` and its ``vertices``, ``faces`` and ``weights``, if it is a Result with a mesh and weights; else a clear error."""
+def _result_mesh(result: object) -> tuple[Result, Blend]:
+    """``result`` and its blend (the mesh and the weights), if it is a Result with one; else a clear error."""
     if not isinstance(result, Result):
         raise TypeError(f"expected an omniwidget Result (from omniwidget.warp), got {type(result).__name__}")
-    if result.weights is None or result.vertices is None or result.faces is None:
+    if result.blend is None:
         raise ValueError(
             "this Result has no mesh and no weights (result.weights is None): its handles all share one "
             "Möbius map (no handles, one handle, or handles that do not move each other), which is applied "
             "exactly without blending; warp two or more handles with different maps to get a mesh"
         )
-    return result, result.vertices, result.faces, result.weights
+    return result, result.blend
 
 
 def _check_handle(result: Result, handle: object) -> int:
@@ -177,7 +178,8 @@ def handle_weights(result: Result) -> NDArray[np.float64]:
     ValueError
         If the result has no weights (a single-map warp).
     """
-    result, _, _, weights = _result_mesh(result)
+    result, blend = _result_mesh(result)
+    weights = blend.weights
     out = np.zeros((weights.shape[0], len(result.handles)), dtype=np.float64)
     for c, control in enumerate(result.controls):
         if control.handle != BACKGROUND:
@@ -255,13 +257,14 @@ def weights_mesh(result: Result) -> pyvista.PolyData:
         If the result has no mesh (a single-map warp).
     """
     pv = _pyvista()
-    result, vertices, faces, _ = _result_mesh(result)
-    mesh = pv.PolyData(np.array(vertices, dtype=np.float64), _vtk_faces(faces))
+    result, blend = _result_mesh(result)
+    vertices = blend.vertices
+    mesh = pv.PolyData(np.array(vertices, dtype=np.float64), _vtk_faces(blend.faces))
     weights = handle_weights(result)
     for i in range(weights.shape[1]):
         mesh.point_data.set_array(weights[:, i], handle_label(result.handles, i))
     constrained = np.zeros(len(vertices), dtype=np.uint8)
-    constrained[result.constrained] = 1
+    constrained[blend.constrained] = 1
     mesh.point_data.set_array(constrained, "constrained")
     mesh.point_data.set_array(coords.xyz_to_lonlat(vertices), "lonlat")
     return mesh
@@ -519,7 +522,8 @@ def weights_overlay(
     from .._checks import whole_number
     from ..method.locate import interpolate, locate_grid
 
-    result, vertices, faces, _ = _result_mesh(result)
+    result, blend = _result_mesh(result)
+    vertices, faces = blend.vertices, blend.faces
     handle = _check_handle(result, handle)
     width = whole_number(width, "width", 2, even=True)
     if not 0.0 <= float(alpha) <= 1.0:
@@ -572,8 +576,8 @@ def refinement_rounds(source: Result | object) -> list[tuple[NDArray[np.float64]
 
     own: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None
     if isinstance(source, Result):
-        checked, vertices, faces, _ = _result_mesh(source)
-        constraints, own = checked.constraints, (vertices, faces)
+        checked, blend = _result_mesh(source)
+        constraints, own = checked.constraints, (blend.vertices, blend.faces)
     elif isinstance(source, Constraints):
         constraints = source
     else:
@@ -768,7 +772,8 @@ class WeightsPane:
             if result is None:
                 self._show_message("no result yet")
                 return
-            if result.weights is None or result.vertices is None:
+            blend = result.blend
+            if blend is None:
                 self._show_message("this result has no mesh: its handles share one Möbius map (result.weights is None)")
                 return
             if not 0 <= self._handle < len(result.handles):
@@ -791,7 +796,7 @@ class WeightsPane:
                     f'<iframe class="ow-weights-view" data-handle="{self._handle}" srcdoc="{_html.escape(self.html)}" '
                     f'width="{w}" height="{h}" style="border:0"></iframe>'
                 )
-            self._caption.value = f"<b>weights of {_html.escape(label)}</b> on the adaptive mesh ({len(result.vertices)} vertices)"
+            self._caption.value = f"<b>weights of {_html.escape(label)}</b> on the adaptive mesh ({len(blend.vertices)} vertices)"
 
     def _repr_mimebundle_(self, **kwargs: Any) -> Any:
         return self.widget._repr_mimebundle_(**kwargs)
