@@ -622,3 +622,20 @@ def test_a_12000_by_6000_panorama_warps_within_4_gb(tmp_path):
     # difference of 0.46 levels against 62 levels of motion (0.75%; JPEG alone accounts for 0.22); bound 2%
     assert report["off"] < 0.02 * report["moved"] and report["off"] < 1.0, report
     print(f"12000 x 6000 through the command line: peak {report['peak_kib'] / 1024**2:.2f} GiB, {report}")
+
+
+def test_the_sizes_a_warps_memory_is_counted_by_are_the_resamplings_own():
+    """io counts a warp's memory without importing the resampling: its sizes must be the resampling's and the strips' own."""
+    from omniwidget.io.large import WARP_SIZES
+    from omniwidget.raster import strips, warping
+
+    sizes = WARP_SIZES
+    assert (sizes.pad, sizes.remap_limit, sizes.patch_pixels) == (warping.PAD, warping.REMAP_LIMIT, warping.PATCH_PIXELS)
+    assert (sizes.stream_width, sizes.map_width, sizes.strip_pixels, sizes.strips_ahead) == (
+        strips.STREAM_WIDTH,
+        strips.MAP_WIDTH,
+        strips.STRIP_PIXELS,
+        strips.STRIPS_AHEAD,
+    )
+    for width in (1, 1000, 16384, 64000, 10**6):
+        assert sizes.strip_rows(width) == strips.strip_rows(width)

@@ -9,6 +9,7 @@ path here) and write the same output as from memory.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
 
@@ -242,6 +243,7 @@ def test_a_warp_that_would_not_fit_in_memory_is_made_in_strips_where_those_fit(r
     write_image(tmp_path / "p.png", cv2.resize(image, (4096, 2048), interpolation=cv2.INTER_LINEAR))
     (tmp_path / "h.json").write_text(doc.to_json())
     monkeypatch.setattr(strips, "MAP_WIDTH", 1024)
+    monkeypatch.setattr(large, "WARP_SIZES", dataclasses.replace(large.WARP_SIZES, map_width=1024))  # the memory counted alike
     whole = memory_needed(tmp_path / "p.png", warp=True)
     streamed = memory_needed(tmp_path / "p.png", warp=True, streamed=True)
     assert streamed < whole, (streamed, whole)  # the map grid (1024) and a strip against the whole output's arrays

@@ -721,15 +721,12 @@ def _plan(header: ImageHeader, *, width: int | None, reduce: bool = True, stream
 
 def _needed(header: ImageHeader, *, warp: bool, width: int | None, plan: ReadPlan, streamed: bool = False) -> int:
     """Peak bytes of reading the image as ``plan`` says and, with ``warp``, of warping it (in strips when ``streamed`` or wide)."""
-    from ..raster.warping import PAD, PATCH_PIXELS, REMAP_LIMIT
-
+    sizes = large.WARP_SIZES  # looked up at each call, as the strips' own sizes are
     image = header.nbytes // (plan.reduce * plan.reduce)
     if plan.how == "disk":  # a patch at a time from disk; the method runs on a copy reduced for the map grid
-        from ..raster.strips import MAP_WIDTH
-
-        copy = _plan(header, width=MAP_WIDTH)
-        reading = _needed(header, warp=False, width=MAP_WIDTH, plan=copy)
-        image, source = header.nbytes // (copy.reduce * copy.reduce), PATCH_PIXELS * header.bytes_per_pixel
+        copy = _plan(header, width=sizes.map_width)
+        reading = _needed(header, warp=False, width=sizes.map_width, plan=copy)
+        image, source = header.nbytes // (copy.reduce * copy.reduce), sizes.patch_pixels * header.bytes_per_pixel
     else:
         if plan.how == "reduced":  # decoded in strips: the output and a band of rows at full size
             reading = image + REDUCE_ROWS * plan.reduce * header.width * header.bytes_per_pixel * 2
@@ -737,19 +734,17 @@ def _needed(header: ImageHeader, *, warp: bool, width: int | None, plan: ReadPla
             reading = header.file_bytes + 2 * image
         if not warp:
             return reading
-        if max(header.width, header.height) // plan.reduce + 2 * PAD < REMAP_LIMIT:
+        if max(header.width, header.height) // plan.reduce + 2 * sizes.pad < sizes.remap_limit:
             source = WARP_INPUT_COPIES * image
-        else:  # resampled in tiles (remap_panorama): no padded copy, one patch at a time
-            source = image + PATCH_PIXELS * header.bytes_per_pixel
-    from ..raster.strips import MAP_WIDTH, STREAM_WIDTH, STRIPS_AHEAD, strip_rows
-
+        else:  # resampled in tiles: no padded copy, one patch at a time
+            source = image + sizes.patch_pixels * header.bytes_per_pixel
     w, pixels = _warp_output(header, width)
-    if not streamed and w <= STREAM_WIDTH:
+    if not streamed and w <= sizes.stream_width:
         return max(reading, source + pixels * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel))
-    # made in strips (omniwidget.raster.strips): the warp on the map grid, its unit vectors (12 bytes, twice while
+    # made in strips: the warp on the map grid, its unit vectors (12 bytes, twice while
     # padded), and the strips in hand (their interpolation)
-    grid = MAP_WIDTH * (MAP_WIDTH // 2)
-    strip = (STRIPS_AHEAD + 1) * strip_rows(w) * w * STRIP_BYTES_PER_PIXEL  # the strip written and those made ahead
+    grid = sizes.map_width * (sizes.map_width // 2)
+    strip = (sizes.strips_ahead + 1) * sizes.strip_rows(w) * w * STRIP_BYTES_PER_PIXEL  # the strip written and those made ahead
     return max(reading, source + grid * (WARP_BYTES_PER_PIXEL + header.bytes_per_pixel + 24) + strip)
 
 

@@ -57,6 +57,8 @@ __all__ = [
     "plan_read",
     "read_reduced",
     "row_blocks",
+    "WARP_SIZES",
+    "WarpSizes",
     "stream_bytes",
     "write_jpeg_strips",
     "write_png_strips",
@@ -64,7 +66,7 @@ __all__ = [
 
 #: A panorama decoded larger than this (bytes) is not held whole where it need not be: a warp
 #: made in strips reads it from disk a patch at a time, a warp to a smaller width decodes it
-#: reduced in strips. Below it files are decoded whole, as they always were. The environment
+#: reduced in strips. Below it files are decoded whole. The environment
 #: variable of this name (bytes) sets another.
 STREAM_BYTES = 1 << 30
 STREAM_VARIABLE = "OMNIWIDGET_STREAM_BYTES"
@@ -81,6 +83,52 @@ def stream_bytes() -> int:
         raise ImageError(f"{STREAM_VARIABLE}={value!r}: expected a number of bytes") from None
 #: Rows of the source :func:`read_reduced` averages at a time (times the factor).
 REDUCE_ROWS = 64
+
+
+@dataclass(frozen=True)
+class WarpSizes:
+    """The sizes by which a warp holds memory, as the resampling and the warp in strips make it.
+
+    :func:`omniwidget.io.images.memory_needed` counts a warp with them before the file is
+    decoded. They are the resampling's and the strips' own constants
+    (:data:`omniwidget.raster.warping.PAD`, ``REMAP_LIMIT``, ``PATCH_PIXELS``;
+    :data:`omniwidget.raster.strips.STREAM_WIDTH`, ``MAP_WIDTH``, ``STRIP_PIXELS``,
+    ``STRIPS_AHEAD``), said again here so that reading and writing stand below the method
+    and the resampling; the tests check that the two agree.
+
+    Attributes
+    ----------
+    pad : int
+        Pixels a panorama is padded by on each side before it is resampled.
+    remap_limit : int
+        Pixels a side above which OpenCV's ``remap`` cannot go: larger panoramas are resampled in tiles.
+    patch_pixels : int
+        The most source pixels a tile's patch may have.
+    stream_width : int
+        Outputs wider than this are made in strips.
+    map_width : int
+        Width of the grid the method's map is computed on for a warp in strips.
+    strip_pixels : int
+        Output pixels a strip holds, about.
+    strips_ahead : int
+        Strips made ahead of the writer besides the one it takes.
+    """
+
+    pad: int = 3
+    remap_limit: int = 32767
+    patch_pixels: int = 1 << 26
+    stream_width: int = 16384
+    map_width: int = 8192
+    strip_pixels: int = 1 << 20
+    strips_ahead: int = 2
+
+    def strip_rows(self, width: int) -> int:
+        """Rows of the strips of an output ``width`` wide: :attr:`strip_pixels` pixels' worth, at least 8."""
+        return max(8, self.strip_pixels // max(int(width), 1))
+
+
+#: The sizes a warp's memory is counted by.
+WARP_SIZES = WarpSizes()
 
 #: The reductions libjpeg decodes a JPEG at (its DCT scaling, as OpenCV offers it).
 JPEG_REDUCTIONS = (2, 4, 8)
