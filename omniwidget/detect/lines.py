@@ -14,8 +14,8 @@ contrast and given a confidence.
 The detector is OpenCV's LSD (:func:`cv2.createLineSegmentDetector`): it finds each edge
 as one segment with sub-pixel ends and needs no thresholds tuned per image, where
 scikit-image's Canny edges and probabilistic Hough transform (kept as ``detector="hough"``
-for comparison) break edges into pieces, find spurious ones and are slower; the README
-gives the figures.
+for comparison) break edges into pieces, find spurious ones and are slower
+(``bench/RESULTS.md``, "Suggested lines and levelling", gives the figures).
 """
 
 from __future__ import annotations
