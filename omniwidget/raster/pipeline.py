@@ -72,7 +72,7 @@ FOLD_WARNING_AREA = 1e-5
 #: The shares of their maps that :func:`_give_way` tries for the handles where the blend still folds, in turn.
 GIVE_WAY = (0.75, 0.5, 0.25, 0.0)
 #: A blend that turns more than this share of the sphere over, or in more than :data:`UNTANGLE_PATCHES` patches, is not
-#: untangled in windows (on photos with dozens of crossing suggestions that took minutes): its handles give way first.
+#: untangled in windows (so many windows, as on photos with dozens of crossing suggestions, are slow): its handles give way first.
 UNTANGLE_AREA = 0.01
 UNTANGLE_PATCHES = 24
 #: Rounds of untangling in the default mode (:func:`_untangled`).
@@ -83,8 +83,8 @@ class _measured_once:
     """A property computed when first asked and kept in the instance, like :func:`functools.cached_property`.
 
     Without its lock: up to Python 3.11 that lock is one per class, so one result's quality
-    measured in the editor's thread made every other result's wait (a notebook with several
-    editors). Two threads asking at once may both compute it; the figures are the same.
+    measured in the editor's thread would make every other result's wait (a notebook with
+    several editors). Two threads asking at once may both compute it; the figures are the same.
     """
 
     def __init__(self, fn: Any) -> None:
