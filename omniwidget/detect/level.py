@@ -176,9 +176,7 @@ def level_document(doc: Handles, up: Level | LonLat | Moebius) -> Handles:
         old = legacy[0].moebius() @ old
     new = Moebius.levelling(new_up)
     q = new @ old.inverse
-
-    kept = [h for h in doc.handles if not (h.id == LEVEL_ID and isinstance(h, PointHandle))]
-    out: list[Handle] = [kind_of(h).carried(h, old, q) for h in kept]
+    out: list[Handle] = [kind_of(h).carried(h, old, q) for h in doc.handles if all(h is not gone for gone in legacy)]
     return Handles(tuple(out), replace(doc.options, up=new_up))
 
 

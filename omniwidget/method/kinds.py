@@ -4,7 +4,7 @@ The document layer (:mod:`omniwidget.document.handles`) holds the records and th
 format. Everything the method does that depends on the kind of a handle is a method of its
 kind object here, found through :data:`KINDS` (record type to kind) by :func:`kind_of`:
 
-- ``maps``: its Möbius maps, one per control (Sec. 3.3);
+- ``maps``: its Möbius maps, one per control (Sec. 3.3, built by the record's public ``moebius`` or ``vertex_maps``);
 - ``anchors``: how it takes part, held where its maps put it, in the solve of Sec. 3.4;
 - ``add_controls``: its controls and the points where their weights are prescribed;
 - ``output_points``: where its control points land in the output;
@@ -14,8 +14,8 @@ kind object here, found through :data:`KINDS` (record type to kind) by :func:`ki
 - ``carried``: its output turned by a rotation of the whole output (a new levelling);
 - ``input_turned``: its input positions turned, its outputs kept (the input levelled).
 
-A new kind of handle is a record in the document layer and one kind object here, added
-to :data:`KINDS` (``docs/handle-kinds.md``).
+A new kind of handle is a record with its file format and schema in the document layer,
+and one kind object here added to :data:`KINDS` (``docs/handle-kinds.md``).
 """
 
 from __future__ import annotations
