@@ -14,7 +14,7 @@ import pytest
 from omniwidget.document.handles import Handles, LineHandle, Options, PointHandle
 from omniwidget.evaluate.baselines import BaselineDeformation, BaselineResult, gaussian_2017
 from omniwidget.evaluate.scenes import synthetic_room
-from omniwidget.method.deformation import Blend, Deformation, deform
+from omniwidget.method.deformation import Blend, Deformation, deform, levelled_handles
 from omniwidget.raster.pipeline import Result, warp
 from omniwidget.sphere import coords
 
@@ -83,3 +83,17 @@ def test_a_baseline_result_holds_its_method_s_deformation(room):
     assert np.array_equal(result.pixel_weights(slice(0, 4)), d.pixel_weights(slice(0, 4)))
     with pytest.raises(ValueError, match=r"expected \[lon, lat\] pairs"):
         result.inverse_points(np.zeros((3, 3)))
+
+
+def test_a_levelled_document_reuses_its_previous_solve_and_turns_its_blend(room):
+    doc = Handles(TWO, Options(up=(20.0, 80.0)))
+    first = warp(room, doc, warn=False)
+    again = warp(room, doc, warn=False, previous=first)
+    assert first.blend is not None and again.raw_weights is first.raw_weights  # the same weights problem: taken as it is
+    assert np.array_equal(again.image, first.image)
+    levelled = deform(levelled_handles(doc), upright=True)
+    assert levelled.handles.options.up is None and levelled.blend is not None
+    # every map starts with the levelling turn; the weights (on the output sphere) are the levelled solve's
+    assert np.array_equal(first.weights, levelled.weights)
+    turn = doc.options.levelling()
+    assert all(a.moebius.isclose(b.moebius @ turn) for a, b in zip(first.controls, levelled.controls, strict=True))

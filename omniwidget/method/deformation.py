@@ -27,6 +27,7 @@ from . import harmonic
 from .background import BACKGROUND, BACKGROUND_EASE, cage_insides, carry_insides, ease_background, with_background
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .harmonic import HarmonicFill, harmonic_fill
+from .kinds import kind_of
 from .limits import check_mesh, check_weights
 from .locate import interpolate, locate_points
 from .mesh import adaptive_mesh
@@ -379,20 +380,7 @@ def levelled_handles(handles: Handles) -> Handles:
     turn = handles.options.levelling()
     if turn is None:
         return handles
-
-    def moved(p: tuple[float, float]) -> tuple[float, float]:
-        lon, lat = turn(np.asarray(p, dtype=np.float64))
-        return (float(lon), float(lat))
-
-    out: list[PointHandle | LineHandle | CageHandle] = []
-    for h in handles.handles:
-        if isinstance(h, PointHandle):
-            out.append(replace(h, position=moved(h.position)))
-        elif isinstance(h, LineHandle):
-            out.append(replace(h, start=moved(h.start), end=moved(h.end)))
-        else:
-            out.append(replace(h, vertices=tuple(moved(v) for v in h.vertices)))
-    return Handles(tuple(out), replace(handles.options, up=None))
+    return Handles(tuple(kind_of(h).input_turned(h, turn) for h in handles.handles), replace(handles.options, up=None))
 
 
 def turned(d: Deformation, turn: Moebius, handles: Handles) -> Deformation:
