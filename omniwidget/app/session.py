@@ -153,17 +153,17 @@ class EditingSession:
         self.handles_path = Path(handles_path) if handles_path is not None else self._default_handles
         self._guard_handles = handles_path is None and shared_name  # Save replaces only a file of its own there
         self._handles_written: tuple[int, ...] | None = None  # the handles file as this editor last saved or read it
+        path = autosave_location(autosave, self._source.path, self._source.working)
+        self._autosave = None if path is None else Autosave(path, self.board)
         given, handles_file = _given_handles(handles)
-        self.board.handles = self._open_autosave(autosave, given).to_dict()
+        self.board.handles = self._start_from(given).to_dict()
         if handles_file is not None:
             self._note_handles_file(handles_file)
         self.board.history = self._history.counts()
 
-    def _open_autosave(self, autosave: Any, given: Handles | None) -> Handles:
-        """Find the autosave (None when off) and the document to start from: the given one, or the autosave's restored."""
+    def _start_from(self, given: Handles | None) -> Handles:
+        """The document to start from: the given one, or the autosave's when none was given and it has handles."""
         doc = Handles() if given is None else given
-        path = autosave_location(autosave, self._source.path, self._source.working)
-        self._autosave = None if path is None else Autosave(path, self.board)
         if self._autosave is None:
             return doc
         restored = self._autosave.open(doc, given=given is not None)
