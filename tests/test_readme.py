@@ -75,4 +75,4 @@ def test_the_readmes_test_commands_are_the_ones_ci_runs():
 def test_the_readme_is_a_readme():
     lines = README.count("\n")
     assert 150 <= lines <= 250, lines
-    assert re.search(r"issue ?#?\d+", README, flags=re.IGNORECASE) is None
+    assert re.search(r"issue[ -]?#?\d+", README, flags=re.IGNORECASE) is None
