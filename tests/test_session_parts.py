@@ -19,6 +19,7 @@ from omniwidget.app.autosave import Autosave
 from omniwidget.app.detection import Detection
 from omniwidget.app.drag import LiveDrag
 from omniwidget.app.exports import ImageExport, result_location
+from omniwidget.app.handles_file import HandlesFile
 from omniwidget.app.history import History
 from omniwidget.app.preview import PreviewJob, ResultStatus, render
 from omniwidget.app.session import ANSWERED_WHEN_DONE, COMMANDS, EditingSession
@@ -123,6 +124,25 @@ def test_an_unreadable_autosave_is_said_and_kept_aside_at_the_first_write(tmp_pa
     assert (tmp_path / "room.png.omniwidget-autosave.json.bad").read_text() == "{not json"
     assert _on_disk(path)[0]["target"] == [36.0, 14.0] and save.notice.startswith("the unreadable autosave was kept as ")
     save.release()
+
+
+# --- the handles file -----------------------------------------------------------------------------
+def test_the_handles_file_goes_next_to_the_panorama_and_never_over_a_shared_name_it_did_not_write(tmp_path, monkeypatch):
+    (tmp_path / "day1").mkdir()
+    beside = HandlesFile(tmp_path / "day1" / "room.jpg")
+    assert beside.write(_doc(MOVED)) == tmp_path / "day1" / "room.handles.json"
+    assert _on_disk(beside.path)[0]["target"] == [36.0, 14.0]
+    monkeypatch.chdir(tmp_path)
+    shared = HandlesFile(None)  # an array: the working folder's panorama.handles.json, a name others share
+    assert shared.write(_doc(MOVED)) == Path("panorama.handles.json")
+    other = HandlesFile(None)
+    with pytest.raises(FileExistsError, match="not saved: that file was not written by this editor"):
+        other.write(_doc(LINE))
+    assert _on_disk(tmp_path / "panorama.handles.json")[0]["kind"] == "point"  # untouched
+    other.note(Path("panorama.handles.json"))  # loaded by this editor: its own to write over now
+    other.write(_doc(LINE))
+    assert _on_disk(tmp_path / "panorama.handles.json")[0]["kind"] == "line"
+    assert other.write(_doc(MOVED), tmp_path / "mine.json") == tmp_path / "mine.json"
 
 
 # --- the source ----------------------------------------------------------------------------------

@@ -37,14 +37,14 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ..document.handles import Handles, LineHandle, Options, PointHandle, load_handles, save_handles
+from ..document.handles import Handles, LineHandle, Options, PointHandle, load_handles
 from ..errors import HandlesError
 from ..method.kinds import reset as reset_handle
-from ._places import same_file, signature, writable_folder
 from .autosave import AUTOSAVE_SUFFIX, Autosave, autosave_location
 from .detection import Detection
 from .drag import LiveDrag
 from .exports import RESULT_SUFFIX, ImageExport, VideoExport
+from .handles_file import HandlesFile
 from .history import HISTORY, History
 from .preview import PreviewJob
 from .source import DISPLAY_WIDTH, LAZY_WIDTH, PREVIEW_WIDTH, Source
@@ -75,19 +75,6 @@ def as_document(value: Any) -> Handles:
     if isinstance(value, (str, bytes)):
         return Handles.from_json(value)
     return Handles.from_dict(value)
-
-
-def _handles_location(image_path: Path | None) -> tuple[Path, bool]:
-    """Where Save writes the handles by default, and whether that name is the image's stem in the working folder only.
-
-    ``day1/room.handles.json`` for ``day1/room.jpg`` (next to it, as Save image writes); for an
-    array, the bundled sample or an image in a folder not to write to, ``<stem>.handles.json``
-    in the working folder, a name other panoramas may share.
-    """
-    if image_path is not None and writable_folder(image_path):
-        return image_path.with_name(f"{image_path.stem}.handles.json"), False
-    stem = image_path.stem if image_path is not None else "panorama"
-    return Path(f"{stem}.handles.json"), True
 
 
 def _given_handles(handles: Any) -> tuple[Handles | None, Path | None]:
@@ -149,16 +136,13 @@ class EditingSession:
         self._videos = VideoExport(self._source, self._preview, self.board)
         self._detection = Detection(self._source, self.board, weakref.proxy(self))
         self._drag = LiveDrag(self._preview, self._on_message)
-        self._default_handles, shared_name = _handles_location(self._source.path)
-        self.handles_path = Path(handles_path) if handles_path is not None else self._default_handles
-        self._guard_handles = handles_path is None and shared_name  # Save replaces only a file of its own there
-        self._handles_written: tuple[int, ...] | None = None  # the handles file as this editor last saved or read it
+        self._handles_file = HandlesFile(self._source.path, handles_path)
         path = autosave_location(autosave, self._source.path, self._source.working)
         self._autosave = None if path is None else Autosave(path, self.board)
         given, handles_file = _given_handles(handles)
         self.board.handles = self._start_from(given).to_dict()
         if handles_file is not None:
-            self._note_handles_file(handles_file)
+            self._handles_file.note(handles_file)
         self.board.history = self._history.counts()
 
     def _start_from(self, given: Handles | None) -> Handles:
@@ -226,6 +210,15 @@ class EditingSession:
     def other_autosaves(self) -> list[Path]:
         """The panorama's autosaves this editor did not restore, offered in the notice."""
         return [] if self._autosave is None else self._autosave.other_autosaves
+
+    @property
+    def handles_path(self) -> Path:
+        """Where :meth:`save` writes when given no path (settable)."""
+        return self._handles_file.path
+
+    @handles_path.setter
+    def handles_path(self, path: str | os.PathLike[str]) -> None:
+        self._handles_file.path = Path(path)
 
     @property
     def _notice(self) -> str:
@@ -637,28 +630,12 @@ class EditingSession:
             it may hold another panorama's handles, which Save never writes over. Pass a path,
             or set :attr:`handles_path`.
         """
-        if path is None:
-            path = self.handles_path
-            if self._guard_handles and path == self._default_handles and os.path.lexists(path) and signature(path) != self._handles_written:
-                raise FileExistsError(
-                    f"{path.absolute()}: not saved: that file was not written by this editor and may hold another panorama's "
-                    f"handles (in the working folder it is named after the image's name only); save to another file "
-                    f"(save(path), or set handles_path)"
-                )
-        path = Path(path)
-        save_handles(self.document, path)
-        self._note_handles_file(path)
-        return path
+        return self._handles_file.write(self.document, path)
 
     def load(self, path: str | os.PathLike[str]) -> None:
         """Replace the handles by those of a handles file (an undoable edit)."""
         self.edit(load_handles(path))
-        self._note_handles_file(Path(path))
-
-    def _note_handles_file(self, path: Path) -> None:
-        """Remember the default handles file as this editor saved or read it: Save may write over it."""
-        if same_file(path, self._default_handles):
-            self._handles_written = signature(self._default_handles)
+        self._handles_file.note(Path(path))
 
     # --- the front end's commands -----------------------------------------------------------
     def _solve_drag(self, document: Any) -> None:
