@@ -42,7 +42,7 @@ __all__ = ["LEVEL_ID", "Level", "level", "level_document", "tilt_rotation", "up_
 LonLat = tuple[float, float]
 FloatArray = NDArray[np.float64]
 
-#: The id of the point handle that levelled documents of earlier versions (:func:`level_document` replaces it by ``options.up``).
+#: The id of a point handle that levels its document by itself (:func:`level_document` takes it as the document's levelling and replaces it by ``options.up``).
 LEVEL_ID = "level"
 #: Farthest the vertical direction is looked for from the zenith, degrees (:data:`omniwidget.detect.vertical.MAX_TILT`).
 MAX_TILT = vertical.MAX_TILT
@@ -147,8 +147,8 @@ def level_document(doc: Handles, up: Level | LonLat | Moebius) -> Handles:
     without targets stays rectified: it is straightened again in the new frame, where its
     verticals are vertical. So near points, cages and fixed lines, and far from every
     handle, the new warp is ``Q`` after the old one; only rectified lines change beyond
-    that. A handle with id ``"level"`` (the point handle that levelled documents of earlier
-    versions) is taken as the old levelling and removed.
+    that. A point handle with id ``"level"`` (:data:`LEVEL_ID`, a levelling held as a
+    handle) is taken as the old levelling and removed.
 
     Parameters
     ----------

@@ -73,12 +73,12 @@ RELATIVE_WEIGHT = 1.0 / 20.0
 #: should move least (the choice measured best, ``bench/bench_line_maps.py``).
 NEAR_LINE = 4.0
 #: With ``keep="sphere"``: the weight of that motion (mean squared, degrees), 10 times an
-#: endpoint's :data:`KEEP_WEIGHT`. More outweighs eq. (8) where lines meet, as in Fig. 6:
-#: at 30 times the sides' tops come within 0.4° of the top edge, at 100 times they fold.
+#: endpoint's :data:`KEEP_WEIGHT`. More outweighs eq. (8) where lines meet, as in Fig. 6: the
+#: sides' tops come up against the top edge, and then fold (bench/RESULTS.md, "One place per kind of handle").
 MOTION_WEIGHT = 10 * KEEP_WEIGHT
 #: With ``keep="sphere"``: an endpoint's keep weight is this many times :data:`KEEP_WEIGHT`. A line's least-motion map
-#: moves its ends (2.8° on a 48° line), and the unmarked edge past them kinks there; held ten times harder they move
-#: 0.42x as far. Where that makes lines cross in the output (Fig. 6), those lines' ends are held as the middle is.
+#: moves its ends, and the unmarked edge past them kinks there; held harder they move less (bench/RESULTS.md,
+#: ``END_KEEP``). Where that makes lines cross in the output (Fig. 6), those lines' ends are held as the middle is.
 END_KEEP = 10.0
 
 
@@ -636,7 +636,7 @@ def _solve_coupled(
                 right[i] -= upright_weight * ci * c0
                 for j, cj in coef.items():
                     big[i, j] += upright_weight * ci * cj
-    # numpy's LAPACK, not scipy's: scipy's OpenBLAS threads spin against a busy machine's other work, and a 226 x 226
-    # Cholesky took 240 ms instead of 0.24 ms with both cores loaded (numpy's solve: 0.6 ms)
+    # numpy's LAPACK, not scipy's: scipy's OpenBLAS threads spin against a busy machine's other work, and the small
+    # system took a thousand times longer (bench/RESULTS.md, "The BLAS threads")
     solution = np.linalg.solve(big, right)
     return np.stack([solution[:n], solution[n:]], axis=1)
