@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 import omniwidget as ow
 from omniwidget.detect import lines
 from omniwidget.detect.lines import BAND_DISTANCE, MAX_ARC, MERGE_DISTANCE, MERGE_GAP, SNAP_REACH, Arc, _unit
-from omniwidget.detect.vertical import INLIER_SIGMAS, _passes_by, _scores
+from omniwidget.detect.vertical import INLIER_SIGMAS, _Edges, _passes_by, _scores
 from omniwidget.evaluate.scenes import synthetic_room
 from tests import requires
 
@@ -489,6 +489,7 @@ def test_level_scores_are_the_dense_sums():
     r = np.arcsin(np.clip(np.abs(normals @ v), 0.0, 1.0))
     far = ~_passes_by(a, along, spans, v) & (np.maximum(np.abs(a @ v), np.abs(b @ v)) < polar)
     dense = (((r < INLIER_SIGMAS * sigma[:, None]) & (r < cap) & far) / sigma[:, None]).sum(axis=0)
-    got = _scores(normals, a, b, along, spans, v, sigma, cap, polar)
+    edges = _Edges(normals, a, b, along, spans, np.degrees(spans), _unit(a + b), np.ones(len(a)))
+    got = _scores(edges, v, sigma, cap, polar)
     assert np.count_nonzero(dense) > 100
     assert np.array_equal(got, dense)

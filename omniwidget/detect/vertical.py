@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -130,18 +131,42 @@ def _passes_by(start: FloatArray, along: FloatArray, span: FloatArray, v: FloatA
     return inside(t) | inside(opposite)
 
 
-def _scores(
-    normals: FloatArray,
-    ends_a: FloatArray,
-    ends_b: FloatArray,
-    along: FloatArray,
-    spans: FloatArray,
-    v: FloatArray,
-    sigma: FloatArray,
-    cap: float,
-    polar: float,
-) -> FloatArray:
-    """Each candidate's score, ``Σ 1 / σ_i`` over the arcs that vote for it (:func:`level`'s ``votes``), shape (m,).
+@dataclass(frozen=True)
+class _Edges:
+    """The arcs that may be vertical edges, as :func:`find_up` weighs them (k arcs)."""
+
+    normals: FloatArray  # (k, 3) unit normals of their great circles
+    start: FloatArray  # (k, 3) their starts
+    end: FloatArray  # (k, 3) their ends
+    along: FloatArray  # (k, 3) unit tangents at their starts, normal x start
+    spans: FloatArray  # (k,) lengths, radians
+    lengths: FloatArray  # (k,) lengths, degrees
+    mids: FloatArray  # (k, 3) unit middles
+    contrast: FloatArray  # (k,)
+
+    @classmethod
+    def of(cls, suggestions: Sequence[Suggestion]) -> _Edges:
+        normals, lengths = _normals(suggestions)
+        ends = [coords.lonlat_to_xyz(np.array([s.start, s.end], dtype=np.float64)) for s in suggestions]
+        start = np.array([p for p, _ in ends]).reshape(-1, 3)
+        end = np.array([q for _, q in ends]).reshape(-1, 3)
+        mids = np.array([(p + q) / np.linalg.norm(p + q) for p, q in ends]).reshape(-1, 3)
+        contrast = np.array([s.contrast for s in suggestions], dtype=np.float64)
+        return cls(normals, start, end, np.cross(normals, start), np.radians(lengths), lengths, mids, contrast)
+
+    def sigma(self, v: FloatArray, accuracy: float) -> FloatArray:
+        """:func:`_sigma` of these arcs at ``v``."""
+        return _sigma(self.normals, self.mids, self.lengths, self.contrast, v, accuracy)
+
+    def votes(self, v: FloatArray, sigma: FloatArray, cap: float, polar: float) -> NDArray[np.bool_]:
+        """Which arcs vote for each candidate (columns of ``v``, shape (3, m)): (k, m); ``cap``, ``polar`` as :func:`_scores`."""
+        r = np.arcsin(np.clip(np.abs(self.normals @ v), 0.0, 1.0))
+        far = ~_passes_by(self.start, self.along, self.spans, v) & (np.maximum(np.abs(self.start @ v), np.abs(self.end @ v)) < polar)
+        return (r < INLIER_SIGMAS * sigma[:, None]) & (r < cap) & far
+
+
+def _scores(edges: _Edges, v: FloatArray, sigma: FloatArray, cap: float, polar: float) -> FloatArray:
+    """Each candidate's score, ``Σ 1 / σ_i`` over the arcs that vote for it (:meth:`_Edges.votes`), shape (m,).
 
     The same sums as over the whole ``(k, m)`` table of votes: the normals' dot products are
     taken for all of it, the rest (the other dot products too) only where an arc's circle
@@ -150,10 +175,8 @@ def _scores(
 
     Parameters
     ----------
-    normals, ends_a, ends_b, along : ndarray of float64, shape (k, 3)
-        The arcs' normals, starts, ends, and tangents at their starts.
-    spans : ndarray of float64, shape (k,)
-        Lengths, radians.
+    edges : _Edges
+        The arcs (their normals, ends, tangents and spans).
     v : ndarray of float64, shape (3, m)
         Candidate directions as columns.
     sigma : ndarray of float64, shape (k,)
@@ -162,7 +185,7 @@ def _scores(
     """
     v = np.ascontiguousarray(v)  # einsum is several times slower on a transposed view
     # numpy's loop, not BLAS: BLAS in threads stalls on this thin product when the cores are busy
-    dots = np.abs(np.einsum("ij,jk->ik", normals, v))
+    dots = np.abs(np.einsum("ij,jk->ik", edges.normals, v))
     # a vote needs arcsin(x) < cap, so x < cap, and arcsin(x) < INLIER_SIGMAS sigma, so x below its sine (loosened
     # against rounding): these are all the voters and more
     reach = INLIER_SIGMAS * sigma
@@ -173,10 +196,10 @@ def _scores(
     # the other products only where an arc is near: its start, tangent and end with the candidate, each summed
     # as einsum("ijk,ik->ji") of the stacked ends does it, (x + z) + y, on coordinates gathered one at a time
     vx, vy, vz = v[0][cols], v[1][cols], v[2][cols]
-    start, tangent, end = ((p[:, 0][rows] * vx + p[:, 2][rows] * vz) + p[:, 1][rows] * vy for p in (ends_a, along, ends_b))
+    start, tangent, end = ((p[:, 0][rows] * vx + p[:, 2][rows] * vz) + p[:, 1][rows] * vy for p in (edges.start, edges.along, edges.end))
     t = np.arctan2(tangent, start)  # the angle along each circle of the point nearest to v
     opposite = np.where(t > 0, t - np.pi, t + np.pi)  # and of the point nearest to -v
-    span = spans[rows]
+    span = edges.spans[rows]
     passes = ((t > 0) & (t < span)) | ((opposite > 0) & (opposite < span))
     far = ~passes & (np.maximum(np.abs(start), np.abs(end)) < polar)
     vote = (r < reach[rows]) & (r < cap) & far
@@ -227,76 +250,80 @@ def find_up(
         vertical (all in one plane), or if they disagree on it.
     """
     every = list(suggestions)
-    too_few = "found {found} vertical edge{s}, need at least {need}: the panorama shows too few vertical lines to level it"
-    index = [n for n, s in enumerate(every) if s.length >= MIN_EDGE_LENGTH]
-    candidates = [every[n] for n in index]
-    if candidates:
-        normals, lengths = _normals(candidates)
-        near = np.abs(normals[:, 2]) <= math.sin(math.radians(max_tilt)) + 1e-12  # the circle passes within max_tilt of the zenith
-        candidates = [s for s, ok in zip(candidates, near, strict=True) if ok]
-        index = [n for n, ok in zip(index, near, strict=True) if ok]
-        normals, lengths = normals[near], lengths[near]
-    if len(candidates) < 2:
-        raise LevelError(too_few.format(found=len(candidates), s="" if len(candidates) == 1 else "s", need=min_edges))
+    index = _near_zenith(every, max_tilt)
+    if len(index) < 2:
+        raise LevelError(_TOO_FEW.format(found=len(index), s="" if len(index) == 1 else "s", need=min_edges))
+    edges = _Edges.of([every[n] for n in index])
     accuracy = ENDPOINT_PX * 2 * math.pi / width
-    ends = [coords.lonlat_to_xyz(np.array([s.start, s.end], dtype=np.float64)) for s in candidates]
-    mids = np.array([(p + q) / np.linalg.norm(p + q) for p, q in ends])
-    cap = math.sin(math.radians(INLIER_DISTANCE))
-    contrast = np.array([s.contrast for s in candidates])
+    v, inliers, sigma = _refined(edges, _voted(edges, max_tilt, accuracy, min_edges), accuracy)
+    residual = _agreed(edges.normals[inliers], sigma[inliers], v, min_edges)
+    mask = np.zeros(len(every), dtype=bool)
+    mask[np.array(index, dtype=np.intp)[inliers]] = True
+    return v, mask, residual
 
-    ends_a = np.array([p for p, _ in ends])
-    ends_b = np.array([q for _, q in ends])
-    polar = math.cos(math.radians(POLAR_CAP))
-    along = np.cross(normals, ends_a)  # with ends_a, the frame of each arc's plane
-    spans = np.radians(lengths)
 
-    def votes(v: FloatArray, sigma: FloatArray) -> NDArray[np.bool_]:
-        """Which arcs vote for each candidate (columns of ``v``, shape (3, m)): (k, m)."""
-        r = np.arcsin(np.clip(np.abs(normals @ v), 0.0, 1.0))
-        far = ~_passes_by(ends_a, along, spans, v) & (np.maximum(np.abs(ends_a @ v), np.abs(ends_b @ v)) < polar)
-        return (r < INLIER_SIGMAS * sigma[:, None]) & (r < cap) & far
+_TOO_FEW = "found {found} vertical edge{s}, need at least {need}: the panorama shows too few vertical lines to level it"
 
-    def inliers_of(v: FloatArray) -> tuple[NDArray[np.bool_], FloatArray]:
-        sigma = _sigma(normals, mids, lengths, contrast, v, accuracy)
-        return votes(v[:, None], sigma)[:, 0], sigma
 
-    cos_tilt = math.cos(math.radians(max_tilt))
-    i, j = np.triu_indices(len(candidates), 1)
-    v = np.cross(normals[i], normals[j])
+def _near_zenith(every: list[Suggestion], max_tilt: float) -> list[int]:
+    """Indices of the suggestions long enough (:data:`MIN_EDGE_LENGTH`) whose great circle passes within ``max_tilt`` of the zenith."""
+    index = [n for n, s in enumerate(every) if s.length >= MIN_EDGE_LENGTH]
+    if not index:
+        return index
+    normals, _ = _normals([every[n] for n in index])
+    near = np.abs(normals[:, 2]) <= math.sin(math.radians(max_tilt)) + 1e-12
+    return [n for n, ok in zip(index, near, strict=True) if ok]
+
+
+def _voted(edges: _Edges, max_tilt: float, accuracy: float, min_edges: int) -> FloatArray:
+    """The candidate with the highest :func:`_scores`, among where two circles cross at a good angle within ``max_tilt`` of the zenith."""
+    i, j = np.triu_indices(len(edges.normals), 1)
+    v = np.cross(edges.normals[i], edges.normals[j])
     size = np.linalg.norm(v, axis=1)
     ok = size > math.sin(math.radians(5.0))  # planes that cross at a good angle
     v = v[ok] / size[ok, None]
     v *= np.where(v[:, 2] < 0, -1.0, 1.0)[:, None]
-    v = v[v[:, 2] >= cos_tilt]
+    v = v[v[:, 2] >= math.cos(math.radians(max_tilt))]
     if len(v) == 0:
-        raise LevelError(too_few.format(found=0, s="s", need=min_edges))
-    zenith = np.array([0.0, 0.0, 1.0])
-    sigma_z = _sigma(normals, mids, lengths, contrast, zenith, accuracy)  # the errors hardly change within max_tilt of the zenith
-    scores = np.concatenate(
-        [_scores(normals, ends_a, ends_b, along, spans, block.T, sigma_z, cap, polar) for block in np.array_split(v, max(1, len(v) // CANDIDATES_PER_BLOCK))]
-    )
-    best = v[int(np.argmax(scores))]
-    inliers, sigma = inliers_of(best)
+        raise LevelError(_TOO_FEW.format(found=0, s="s", need=min_edges))
+    sigma_z = edges.sigma(np.array([0.0, 0.0, 1.0]), accuracy)  # the errors hardly change within max_tilt of the zenith
+    cap, polar = math.sin(math.radians(INLIER_DISTANCE)), math.cos(math.radians(POLAR_CAP))
+    blocks = np.array_split(v, max(1, len(v) // CANDIDATES_PER_BLOCK))
+    scores = np.concatenate([_scores(edges, block.T, sigma_z, cap, polar) for block in blocks])
+    return np.asarray(v[int(np.argmax(scores))])
+
+
+def _inliers(edges: _Edges, v: FloatArray, accuracy: float) -> tuple[NDArray[np.bool_], FloatArray]:
+    """The arcs voting for ``v``, (k,), and their errors there (:func:`_sigma`)."""
+    sigma = edges.sigma(v, accuracy)
+    cap, polar = math.sin(math.radians(INLIER_DISTANCE)), math.cos(math.radians(POLAR_CAP))
+    return edges.votes(v[:, None], sigma, cap, polar)[:, 0], sigma
+
+
+def _refined(edges: _Edges, best: FloatArray, accuracy: float) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
+    """``best`` refitted to its inliers (:func:`_refit`) three times; the direction, its inliers and their errors."""
+    inliers, sigma = _inliers(edges, best, accuracy)
     for _ in range(3):
         if inliers.sum() < 2:
             break
-        v = _refit(normals[inliers], sigma[inliers], best)
-        inliers, sigma = inliers_of(v)
-        best = v
-    v = best
-    found = _distinct_planes(normals[inliers])
+        best = _refit(edges.normals[inliers], sigma[inliers], best)
+        inliers, sigma = _inliers(edges, best, accuracy)
+    return best, inliers, sigma
+
+
+def _agreed(normals: FloatArray, sigma: FloatArray, v: FloatArray, min_edges: int) -> float:
+    """The inliers' RMS distance in degrees from ``v``, once they are enough, spread and agreeing (else :class:`LevelError`)."""
+    found = _distinct_planes(normals)
     if found < min_edges:
-        raise LevelError(too_few.format(found=found, s="" if found == 1 else "s", need=min_edges))
-    spread = np.linalg.eigvalsh(normals[inliers].T @ normals[inliers])
+        raise LevelError(_TOO_FEW.format(found=found, s="" if found == 1 else "s", need=min_edges))
+    spread = np.linalg.eigvalsh(normals.T @ normals)
     if spread[1] < 0.02 * spread[2]:
         raise LevelError(f"the {found} vertical edges found lie nearly in one plane through the camera, so they do not fix where up is")
-    r = _residuals(normals[inliers], v)
-    chi = math.sqrt(float(np.mean((r / sigma[inliers]) ** 2)))
+    r = _residuals(normals, v)
+    chi = math.sqrt(float(np.mean((r / sigma) ** 2)))
     residual = math.degrees(math.sqrt(float(np.mean(r**2))))
     if chi > MAX_RESIDUAL:
         raise LevelError(
             f"the {found} vertical edges found disagree on where up is (by {residual:.2f}° on average), so the panorama is not levelled"
         )
-    mask = np.zeros(len(every), dtype=bool)
-    mask[np.array(index, dtype=np.intp)[inliers]] = True
-    return v, mask, residual
+    return residual
