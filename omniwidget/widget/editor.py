@@ -209,7 +209,7 @@ class Editor(anywidget.AnyWidget):
     frame_interval = traitlets.Float(0.0).tag(sync=True)
     suggestions: traitlets.List[dict] = traitlets.List().tag(sync=True)
 
-    def __init__(
+    def __init__(  # noqa: PLR0913 - the editor's documented keyword options, as a notebook cell writes them
         self,
         image: NDArray | str | os.PathLike[str],
         handles: Handles | dict | str | os.PathLike[str] | None = None,
