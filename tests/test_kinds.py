@@ -138,3 +138,12 @@ def test_input_turned_moves_every_input_position_and_keeps_the_outputs():
             assert turned.targets == h.targets
     same = kind_of(POINT).input_turned(POINT, Moebius.identity())
     assert coords.angular_distance(same.position, POINT.position) < 1e-9 and same.target == POINT.target
+
+
+def test_moving_says_which_handles_move_and_where_they_mark():
+    assert kind_of(POINT).moving(POINT) == (True, [POINT.position, POINT.final])
+    assert kind_of(POINT).moving(reset(POINT)) == (False, [POINT.position, POINT.position])
+    assert kind_of(LINE).moving(reset(LINE)) == (True, [LINE.start, LINE.end])
+    moves, where = kind_of(CAGE).moving(CAGE)
+    assert moves and where == [*CAGE.vertices, *CAGE.finals]
+    assert kind_of(CAGE).moving(reset(CAGE))[0] is False

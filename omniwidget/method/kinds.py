@@ -12,7 +12,8 @@ kind object here, found through :data:`KINDS` (record type to kind) by :func:`ki
 - ``footprint``: the arcs it marks in the input and the output (how far other handles' reach may go);
 - ``outline``: the arcs and dots that draw it (:func:`omniwidget.io.draw.draw_handles`);
 - ``carried``: its output turned by a rotation of the whole output (a new levelling);
-- ``input_turned``: its input positions turned, its outputs kept (the input levelled).
+- ``input_turned``: its input positions turned, its outputs kept (the input levelled);
+- ``moving``: whether it may move what is near it, and where it marks (a still cage's conflicts).
 
 A new kind of handle is a record with its file format and schema in the document layer,
 and one kind object here added to :data:`KINDS` (``docs/handle-kinds.md``).
@@ -200,6 +201,9 @@ class Kind(Protocol):
     def input_turned(self, h: Any, turn: Moebius) -> Any:
         """The handle with its input positions turned by ``turn`` and its outputs kept (the input levelled)."""
 
+    def moving(self, h: Any) -> tuple[bool, list[LonLat]]:
+        """Whether it may move what is near it, and the positions it marks, input and output (what a still cage must not hold)."""
+
 
 def _as_pairs(points: NDArray[np.float64]) -> tuple[LonLat, ...]:
     return tuple((float(lon), float(lat)) for lon, lat in points)
@@ -271,6 +275,10 @@ class PointKind:
     def input_turned(self, h: PointHandle, turn: Moebius) -> PointHandle:
         """Its position turned."""
         return replace(h, position=_turned(turn, h.position))
+
+    def moving(self, h: PointHandle) -> tuple[bool, list[LonLat]]:
+        """Moved, turned or zoomed; its position and target."""
+        return h.final != h.position or h.scale != 1.0 or h.rotation != 0.0, [h.position, h.final]
 
 
 def _wrap_turn(angle: float) -> float:
@@ -349,6 +357,10 @@ class LineKind:
         """Its start and end turned."""
         return replace(h, start=_turned(turn, h.start), end=_turned(turn, h.end))
 
+    def moving(self, h: LineHandle) -> tuple[bool, list[LonLat]]:
+        """Always (its map, or the solve of Sec. 3.4, may bend what is near it); its ends."""
+        return True, [h.start, h.end]
+
 
 def _line_samples(rows: Rows, piece: int, c: int, out: NDArray[np.float64], *, first: bool, last: bool) -> None:
     """A line part's output samples ``out`` (s, 3) as rows of control ``c``: its own, a joint's, or shared with the next part."""
@@ -423,6 +435,10 @@ class CageKind:
     def input_turned(self, h: CageHandle, turn: Moebius) -> CageHandle:
         """Its vertices turned."""
         return replace(h, vertices=tuple(_turned(turn, v) for v in h.vertices))
+
+    def moving(self, h: CageHandle) -> tuple[bool, list[LonLat]]:
+        """Moved when any vertex has a target of its own; its vertices and their targets."""
+        return h.finals != h.vertices, [*h.vertices, *h.finals]
 
 
 POINT = PointKind()
