@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,12 +22,16 @@ from .source import Source
 from .status import Board, JobStatus, exception_text
 
 if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
     from ..detect import Suggestion
 
 __all__ = ["Detection", "Editing"]
 
 #: Called once a job has changed the handles (or failed to): the front end's answer.
 Then = Callable[[], None]
+#: The jobs of detection, each with its worker and its ``status[job]``.
+Job = Literal["suggest", "level", "straighten"]
 
 
 class Editing(Protocol):
@@ -88,13 +92,13 @@ class Detection:
         with self.board.lock:
             return self.source.downscaled(DETECT_WIDTH)
 
-    def _set(self, job: str, **fields: Any) -> None:
-        self.board.set_job(job, fields)  # type: ignore[arg-type]
+    def _set(self, job: Job, **fields: Unpack[JobStatus]) -> None:
+        self.board.set_job(job, fields)
 
-    def _failed(self, job: str, exc: BaseException) -> None:
+    def _failed(self, job: Job, exc: BaseException) -> None:
         self._errors[job] = self.board.last_error = exc
 
-    def _start(self, job: str, run: Callable[[], None], message: str, wait: bool) -> None:
+    def _start(self, job: Job, run: Callable[[], None], message: str, wait: bool) -> None:
         """Run ``run`` in the job's worker (the status says ``message`` meanwhile); with ``wait``, block and raise its error."""
         self._errors[job] = None
         self._set(job, state="running", message=message)
@@ -242,7 +246,7 @@ class Detection:
                 return
         raise OmniwidgetError("the handles kept changing while the rotation was applied to them; click Level again")
 
-    def _job_failed(self, job: str, exc: BaseException, message: str) -> None:
+    def _job_failed(self, job: Job, exc: BaseException, message: str) -> None:
         self._failed(job, exc)
         self._set(job, state="error", message=message)
         self.board.report_error(message)

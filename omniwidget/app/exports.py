@@ -8,7 +8,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,9 +20,11 @@ from ..io.metadata import Metadata, output_metadata, read_metadata
 from ._places import PACKAGE, same_file
 from .preview import PreviewJob
 from .source import Source
-from .status import Board, exception_text
+from .status import Board, JobState, VideoStatus, exception_text
 
 if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
     from ..io.video import VideoReport
 
 __all__ = ["RESULT_SUFFIX", "ImageExport", "VideoExport", "result_location"]
@@ -80,9 +82,9 @@ class ImageExport:
         self.board = board
         self._on_message = on_message
 
-    def set_state(self, state: str, message: str) -> None:
+    def set_state(self, state: JobState, message: str) -> None:
         """``status["save"]``: Save's and Save image's ``state`` ("running", "done" or "error") and ``message``."""
-        self.board.set_job("save", {"state": state, "message": message})  # type: ignore[typeddict-item]
+        self.board.set_job("save", {"state": state, "message": message})
 
     def save(self, doc: Handles, key: str, path: str | os.PathLike[str] | None, gpano: bool = True) -> Path:
         """Write the full-size result of ``doc`` (cache key ``key``); return where. An error is shown, then raised."""
@@ -272,7 +274,7 @@ class VideoExport:
                 raise TimeoutError(f"the video was not saved within {timeout} s")
         return self.report
 
-    def _set(self, **fields: Any) -> None:
+    def _set(self, **fields: Unpack[VideoStatus]) -> None:
         with self.board.lock:
             self.board.set_status(video={**self.board.status.get("video", {}), **fields})
 

@@ -686,6 +686,11 @@ class EditingSession:
 Command = Callable[[EditingSession, dict], object]
 
 
+def _sent(content: dict, name: str, default: Any = None) -> Any:
+    """A value the front end sent, as it is: the method it goes to checks it, as every value of the front end."""
+    return content.get(name, default)
+
+
 def _level(s: EditingSession, content: dict) -> None:
     s._detection.level(then=lambda: s._answer("level"))  # {"done": "level"} once the rotation is applied
 
@@ -714,9 +719,9 @@ COMMANDS: dict[str, Command] = {
     "undo": lambda s, c: s.undo(),
     "redo": lambda s, c: s.redo(),
     "rectify_all": lambda s, c: s.rectify_all(),
-    "rectify_line": lambda s, c: s.rectify_line(c.get("index")),  # type: ignore[arg-type]
-    "reset": lambda s, c: s.reset(c.get("index")),  # type: ignore[arg-type]
-    "arrow": lambda s, c: s.move_arrow(c.get("index"), c.get("tip"), c.get("which", "east")),  # type: ignore[arg-type]
+    "rectify_line": lambda s, c: s.rectify_line(_sent(c, "index")),
+    "reset": lambda s, c: s.reset(_sent(c, "index")),
+    "arrow": lambda s, c: s.move_arrow(_sent(c, "index"), _sent(c, "tip"), _sent(c, "which", "east")),
     "drag": lambda s, c: s._solve_drag(c.get("handles")),
     "refresh": lambda s, c: s._changed(s.document),
     "live": lambda s, c: s._drag.request(c.get("index")),
@@ -726,7 +731,7 @@ COMMANDS: dict[str, Command] = {
     "cancel_video": lambda s, c: s.cancel_video(),
     "frame": lambda s, c: s.set_frame(c.get("frame")),
     "suggest": lambda s, c: s.suggest_lines(),
-    "accept_suggestion": lambda s, c: s.accept_suggestion(c.get("key")),  # type: ignore[arg-type]
+    "accept_suggestion": lambda s, c: s.accept_suggestion(_sent(c, "key")),
     "accept_all": lambda s, c: s.accept_all_suggestions(),
     "drop_suggestions": lambda s, c: s.drop_suggestions(c.get("key")),
     "level": _level,

@@ -11,12 +11,16 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from typing import Any, Literal, TypedDict
+from typing import TYPE_CHECKING, Any, Literal, TypedDict, cast
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 __all__ = [
     "Board",
     "Changes",
     "HistoryCounts",
+    "JobState",
     "JobStatus",
     "Progress",
     "Status",
@@ -24,6 +28,7 @@ __all__ = [
     "exception_text",
 ]
 
+#: A job's state in ``status[job]``.
 JobState = Literal["running", "done", "error"]
 
 
@@ -151,14 +156,14 @@ class Board:
                 setattr(self, name, value)
         self._on_change(changes)
 
-    def set_status(self, **fields: Any) -> None:
+    def set_status(self, **fields: Unpack[Status]) -> None:
         """Merge ``fields`` into the status and publish it (the caller holds :attr:`lock` where a race matters)."""
-        self.publish({"status": {**self.status, **fields}})  # type: ignore[typeddict-item]
+        self.publish({"status": {**self.status, **fields}})
 
-    def set_job(self, job: str, fields: JobStatus) -> None:
-        """``status[job]`` (``"save"``, ``"suggest"``, ``"level"`` or ``"straighten"``) replaced by ``fields``."""
+    def set_job(self, job: Literal["save", "suggest", "level", "straighten"], fields: JobStatus) -> None:
+        """``status[job]`` replaced by ``fields``: a job's state and message."""
         with self.lock:
-            self.set_status(**{job: fields})
+            self.set_status(**cast(Status, {job: fields}))
 
     def report_error(self, message: str) -> None:
         """Show a refused command or edit; it stays until the next edit (a result still on its way keeps it)."""
@@ -181,4 +186,4 @@ class Board:
                     continue
                 cleared[job] = {**fields, "message": ""}
             if cleared:
-                self.set_status(**cleared)
+                self.set_status(**cast(Status, cleared))
