@@ -36,6 +36,14 @@ def _type_checking_only(tree: ast.AST) -> set[int]:
     return lines
 
 
+def _lazy_import(node: ast.AST) -> str | None:
+    """The module a ``lazy("module")`` call names (:mod:`omniwidget._lazy`: an import made at first use), else None."""
+    if not isinstance(node, ast.Call) or len(node.args) != 1 or not isinstance(node.args[0], ast.Constant):
+        return None
+    called = node.func.id if isinstance(node.func, ast.Name) else getattr(node.func, "attr", None)
+    return node.args[0].value if called == "lazy" and isinstance(node.args[0].value, str) else None
+
+
 def _imports(name: str) -> list[tuple[str, str | None, int]]:
     """``(module imported, name imported from it or None, line)`` for every import of ``name``'s source."""
     path = MODULES[name]
@@ -48,6 +56,8 @@ def _imports(name: str) -> list[tuple[str, str | None, int]]:
             continue
         if isinstance(node, ast.Import):
             found += [(alias.name, None, node.lineno) for alias in node.names]
+        elif (lazy := _lazy_import(node)) is not None:
+            found.append((lazy, None, node.lineno))
         elif isinstance(node, ast.ImportFrom) and node.module != "__future__":
             if node.level:
                 base = package.split(".")[: len(package.split(".")) - node.level + 1]
@@ -131,6 +141,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
         "omniwidget._blas",
         "omniwidget._native",
         "omniwidget._numba_kernels",
+        "omniwidget._lazy",
     ),
     "sphere": ("omniwidget.sphere",),
     "document": ("omniwidget.document",),
@@ -249,3 +260,16 @@ def test_the_layer_check_catches_upward_and_sibling_imports():
     assert forbidden_imports(graph, exceptions={}) == sorted(
         [*found, "omniwidget.raster.pipeline (raster) imports omniwidget.evaluate.quality (evaluate), which raster may not import"]
     )
+
+
+def test_a_lazy_import_is_an_import_and_an_upward_one_is_caught(tmp_path, monkeypatch):
+    """``lazy("module")`` (omniwidget._lazy) is read as an import of that module: the graph sees it and the real check
+    refuses a lazy import upwards as it refuses an import statement."""
+    source = tmp_path / "fake.py"
+    source.write_text('from .._lazy import lazy\n\ncv2 = lazy("cv2")\npipeline = lazy("omniwidget.raster.pipeline")\n')
+    monkeypatch.setitem(MODULES, "omniwidget.sphere.fake", source)
+    assert _imports("omniwidget.sphere.fake") == [("omniwidget._lazy", "lazy", 1), ("cv2", None, 3), ("omniwidget.raster.pipeline", None, 4)]
+    graph = {"omniwidget.sphere.fake": {m for m, _, _ in _imports("omniwidget.sphere.fake") if m in MODULES}}
+    assert forbidden_imports(graph) == [
+        "omniwidget.sphere.fake (sphere) imports omniwidget.raster.pipeline (raster), which sphere may not import"
+    ]
