@@ -43,10 +43,13 @@ numba unpickles its index files, which can run any code.
 
 from __future__ import annotations
 
+import builtins
+import ctypes
 import errno
 import hashlib
 import hmac
 import importlib
+import importlib.util
 import json
 import logging
 import os
@@ -58,9 +61,32 @@ import threading
 from collections.abc import Callable
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from ._lazy import lazy, resolve
+
+if TYPE_CHECKING:
+    import grp
+    import pwd
+
+    import llvmlite
+    import llvmlite.binding as binding
+    import numba
+    from numba.core import caching
+    from numba.np import numpy_support
+
+    from . import _numba_kernels
+else:
+    grp = lazy("grp")  # POSIX only, asked only where files have owners
+    pwd = lazy("pwd")
+    llvmlite = lazy("llvmlite")
+    binding = lazy("llvmlite.binding")
+    numba = lazy("numba")  # only to build a stored kernel or run one: a process that finds them stored never imports it
+    caching = lazy("numba.core.caching")
+    numpy_support = lazy("numba.np.numpy_support")
+    _numba_kernels = lazy("omniwidget._numba_kernels")
 
 __all__ = ["ENV", "FORMAT", "Kernels", "enabled", "kernels", "secure_numba_cache", "stored_files"]
 
@@ -93,8 +119,6 @@ def available() -> bool:
     """
     if os.environ.get("OMNIWIDGET_NUMBA", "1") == "0":
         return False
-    import importlib.util
-
     try:
         return importlib.util.find_spec("numba") is not None
     except (ImportError, ValueError):
@@ -168,10 +192,6 @@ def _stamp() -> dict[str, Any]:
     """What a stored kernel must have been built with to be used here (computed once per process)."""
     stamp = _state.get("stamp")
     if stamp is None:
-        import importlib.util
-
-        import llvmlite
-
         spec = importlib.util.find_spec("numba")  # finds numba without importing it
         if spec is None or spec.origin is None:
             raise ImportError("numba is not installed")
@@ -225,9 +245,6 @@ def _say(level: int, message: str) -> None:
 @cache
 def _private_group(gid: int) -> bool:
     """Whether group ``gid`` is the user's private group: the user's primary group, with no one else in it."""
-    import grp
-    import pwd
-
     uid = os.getuid()
     try:
         me, group = pwd.getpwuid(uid), grp.getgrgid(gid)
@@ -461,11 +478,9 @@ def _llvm() -> Any:
     """The binding layer of llvmlite, with the native target ready (what numba initialises)."""
     ll = _state.get("llvm")
     if ll is None:
-        import llvmlite.binding as binding
-
         binding.initialize_native_target()
         binding.initialize_native_asmprinter()
-        ll = _state["llvm"] = binding
+        ll = _state["llvm"] = resolve(binding)
     return ll
 
 
@@ -497,9 +512,6 @@ def _symbol_address(name: str) -> int | None:
     reached only on the error paths of a kernel that cannot fail (nothing raises, nothing
     is allocated), to ``abort``: nothing can go on silently from there.
     """
-    import builtins
-    import ctypes
-
     process = _state.get("process")
     if process is None:
         process = _state["process"] = ctypes.CDLL(None)
@@ -517,8 +529,6 @@ def _symbol_address(name: str) -> int | None:
 
 def _load(header: dict, code: bytes) -> Callable[..., None]:
     """Link a stored kernel into a JIT engine of its own; returns the ctypes function (which releases the GIL)."""
-    import ctypes
-
     ll = _llvm()
     for name in header["undefined"]:
         if not ll.address_of_symbol(name):
@@ -548,9 +558,7 @@ def _load(header: dict, code: bytes) -> Callable[..., None]:
 # --- building with numba ------------------------------------------------------------------------
 def _build(name: str, dispatcher: Any, key: tuple) -> tuple[dict, bytes, Any]:
     """Compile ``dispatcher`` as a C function of pointers and shapes; its header, machine code and the numba cfunc."""
-    from numba import carray, cfunc, types
-    from numba.np.numpy_support import from_dtype
-
+    types, from_dtype = numba.types, numpy_support.from_dtype
     params, call, argtypes = [], [], []
     for i, code in enumerate(key):
         if isinstance(code, tuple):
@@ -562,10 +570,10 @@ def _build(name: str, dispatcher: Any, key: tuple) -> tuple[dict, bytes, Any]:
             params.append(f"a{i}")
             call.append(f"a{i}")
             argtypes.append(from_dtype(np.dtype(code)))
-    namespace = {"kernel": dispatcher, "carray": carray}
+    namespace = {"kernel": dispatcher, "carray": numba.carray}
     exec(f"def {name}_native({', '.join(params)}):\n    kernel({', '.join(call)})\n", namespace)  # noqa: S102
     # a C callback is always compiled in nopython mode; Any: numba's private _library below is in no stub
-    compiled: Any = cfunc(types.void(*argtypes))(namespace[f"{name}_native"])
+    compiled: Any = numba.cfunc(types.void(*argtypes))(namespace[f"{name}_native"])
     ll = _llvm()
     library = compiled._library
     module = ll.parse_bitcode(library._final_module.as_bitcode())
@@ -629,8 +637,6 @@ def secure_numba_cache(namespace: dict[str, Any]) -> None:
     why = _distrust_numba(dispatchers)
     if why is None:
         return
-    from numba.core.caching import NullCache
-
     config: Any = importlib.import_module("numba.core.config")  # its settings are set at import: in no stub
 
     target = _user_cache() / "numba"
@@ -652,7 +658,7 @@ def secure_numba_cache(namespace: dict[str, Any]) -> None:
             config.CACHE_DIR = before
     if instead is not None:
         for d in dispatchers:
-            d._cache = NullCache()
+            d._cache = caching.NullCache()
         _say(logging.DEBUG, f"numba's cache of the kernels is not used: {why}; nor {target}: {instead} (compiled in every process)")
     else:
         _say(logging.DEBUG, f"numba's cache of the kernels is not used: {why}; it is kept in {target} instead")
@@ -685,12 +691,11 @@ class _quiet:
 def _numba_module() -> Any:
     """:mod:`omniwidget._numba_kernels`, its numba cache made safe (:func:`secure_numba_cache`) before any kernel of it runs."""
     with _lock:
-        from . import _numba_kernels
-
+        module = resolve(_numba_kernels)
         if not _state.get("numba cache checked"):
-            secure_numba_cache(vars(_numba_kernels))
+            secure_numba_cache(vars(module))
             _state["numba cache checked"] = True
-    return _numba_kernels
+    return module
 
 
 class _Kernel:
