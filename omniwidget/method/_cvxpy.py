@@ -10,10 +10,18 @@ It is the only module that imports ``cvxpy`` (``pip install cvxpy``), and only w
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._lazy import lazy, resolve
 from .laplacian import as_constraints, as_mesh, bilaplacian
+
+if TYPE_CHECKING:
+    import cvxpy as cp
+else:
+    cp = lazy("cvxpy")
 
 __all__ = ["cvxpy_bbw"]
 
@@ -48,7 +56,7 @@ def cvxpy_bbw(V: ArrayLike, F: ArrayLike, b: ArrayLike, bc: ArrayLike, *, tolera
         If the solver does not report an optimal solution.
     """
     try:
-        import cvxpy as cp
+        resolve(cp)
     except ImportError as exc:
         raise ImportError(f"cvxpy is needed for solver='cvxpy' (pip install cvxpy): {exc}") from exc
     v, f = as_mesh(V, F)

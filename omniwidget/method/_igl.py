@@ -16,13 +16,21 @@ The bindings changed between releases:
 
 from __future__ import annotations
 
+from importlib import metadata
 from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import whole_number
+from .._lazy import lazy, resolve
 from .laplacian import as_constraints, as_mesh
+
+if TYPE_CHECKING:
+    import igl
+else:
+    igl = lazy("igl")
 
 __all__ = ["igl_bbw", "igl_version", "load_igl"]
 
@@ -38,20 +46,16 @@ def load_igl() -> ModuleType:
         If libigl's Python bindings are not installed; the message says ``pip install libigl``.
     """
     try:
-        import igl
+        return resolve(igl)
     except ImportError as exc:
         raise ImportError(f"{_INSTALL_HINT}: {exc}") from exc
-    return igl
 
 
 def igl_version() -> str:
     """The installed libigl bindings' version, e.g. ``"2.6.3"`` (``"unknown"`` if not recorded)."""
-    igl = load_igl()
-    version = getattr(igl, "__version__", None)
+    version = getattr(load_igl(), "__version__", None)
     if version:
         return str(version)
-    from importlib import metadata
-
     try:
         return metadata.version("libigl")
     except metadata.PackageNotFoundError:

@@ -13,14 +13,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._lazy import lazy
 from ..sphere import coords
 from ..sphere.arcs import inside_polygon
 from ..sphere.moebius import Moebius
 from .constraints import POINT_HOLD, Constraints, Control
+
+if TYPE_CHECKING:
+    from scipy import spatial
+else:
+    spatial = lazy("scipy.spatial")
 
 __all__ = [
     "ANCHOR_GROWTH",
@@ -66,8 +73,6 @@ def with_background(
     values : ndarray of float64, shape (f, k + 1)
         Their weights.
     """
-    from scipy.spatial import cKDTree
-
     owner = np.argmax(constraints.values, axis=1)
     still = np.ones(len(vertices), dtype=bool)
     for c in np.unique(owner):
@@ -76,7 +81,7 @@ def with_background(
             coords.xyz_to_lonlat(points), coords.xyz_to_lonlat(constraints.controls[c].moebius.inverse.apply_xyz(points))
         )
         reach = min(anchor + ANCHOR_GROWTH * float(np.max(moved)), 180.0)
-        distance, _ = cKDTree(points).query(vertices, distance_upper_bound=2.0 * math.sin(math.radians(reach) / 2.0))
+        distance, _ = spatial.cKDTree(points).query(vertices, distance_upper_bound=2.0 * math.sin(math.radians(reach) / 2.0))
         still &= ~np.isfinite(distance)
     for inside, _ in insides:
         still[inside] = False
@@ -148,9 +153,8 @@ def ease_background(weights: NDArray[np.float64], power: float = BACKGROUND_EASE
     weight. The motion of a Möbius map grows away from its handle (a line's fastest: it
     bends), so the weight should fall steeply close to the handle, where the map hardly
     moves the sphere, and slowly farther out. Bounded biharmonic weights fall about evenly;
-    this power moves their fall towards the handle. On rooms of 6 to 10 lines it lowers the
-    99th percentile of the distortion by 16-27% and the mean displacement by half
-    (``bench/bench_line_maps.py``).
+    this power moves their fall towards the handle, which lowers the distortion's 99th
+    percentile and the mean displacement (``bench/bench_line_maps.py`` measures both).
     """
     if power < 1:
         raise ValueError(f"power must be at least 1, got {power}")

@@ -19,17 +19,28 @@ import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import ConvexHull
 
 from .._checks import whole_number
+from .._lazy import lazy
+from ._cvxpy import cvxpy_bbw
+from ._igl import igl_bbw
 from .laplacian import DEGENERATE_AREA, as_constraints, as_mesh, checked_bilaplacian
+from .locate import locate_points
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+    from scipy import spatial
+    from scipy.sparse import csgraph
+else:
+    sp = lazy("scipy.sparse")
+    spla = lazy("scipy.sparse.linalg")
+    csgraph = lazy("scipy.sparse.csgraph")
+    spatial = lazy("scipy.spatial")
 
 __all__ = ["SOLVERS", "bbw", "normalize_rows"]
 
@@ -396,7 +407,7 @@ def _coarse_vertices(adj: sp.csr_matrix, forced: IntArray) -> IntArray:
 def _hull(u: FloatArray) -> IntArray | None:
     """Outward-oriented convex hull triangles of unit vectors, or None if it is not a clean mesh of them."""
     try:
-        faces = ConvexHull(u).simplices.astype(np.int64)
+        faces = spatial.ConvexHull(u).simplices.astype(np.int64)
     except Exception:  # qhull errors: too few or degenerate points
         return None
     a, b, c = (u[faces[:, i]] for i in range(3))
@@ -419,8 +430,6 @@ def _hull(u: FloatArray) -> IntArray | None:
 
 def _prolongation(u_fine: FloatArray, u_coarse: FloatArray, f_coarse: IntArray) -> sp.csr_matrix:
     """Barycentric interpolation from a coarse sphere mesh onto fine points (radial projection), (n_fine, n_coarse)."""
-    from .locate import locate_points
-
     face, bary = locate_points(u_coarse, f_coarse, u_fine)
     rows = np.repeat(np.arange(u_fine.shape[0]), 3)
     return sp.csr_matrix((bary.ravel(), (rows, f_coarse[face].ravel())), shape=(u_fine.shape[0], u_coarse.shape[0]))
@@ -574,12 +583,8 @@ def bbw(  # noqa: PLR0913 - the mesh, its constraints and the solve's documented
     factorizations are cheap.
     """
     if solver == "cvxpy":
-        from ._cvxpy import cvxpy_bbw
-
         return cvxpy_bbw(V, F, b, bc)
     if solver == "igl":
-        from ._igl import igl_bbw
-
         return igl_bbw(V, F, b, bc, max_iter=max_iter)
     if solver != "active-set":
         raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
@@ -662,7 +667,7 @@ def _bbw(
 
 def _check_components(n: int, f: IntArray, idx: IntArray) -> None:
     """Raise unless every connected component of the mesh has a constrained vertex (else its weights are free)."""
-    n_comp, label = connected_components(_adjacency(n, f), directed=False)
+    n_comp, label = csgraph.connected_components(_adjacency(n, f), directed=False)
     if n_comp > 1:
         missing = np.setdiff1d(np.arange(n_comp), label[idx])
         if missing.size:

@@ -13,11 +13,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._blas import one_blas_thread
+from .._lazy import lazy
 from .._timing import Laps
 from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
 from ..sphere import coords
@@ -25,6 +27,7 @@ from ..sphere.arcs import crossing_pairs, inside_polygon
 from ..sphere.moebius import Moebius
 from . import harmonic
 from .background import BACKGROUND, BACKGROUND_EASE, cage_insides, carry_insides, ease_background, with_background
+from .bbw import bbw, normalize_rows
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .harmonic import HarmonicFill, harmonic_fill
 from .kinds import kind_of
@@ -33,6 +36,11 @@ from .locate import interpolate, locate_points
 from .mesh import adaptive_mesh
 from .problems import Kind, Problem
 from .reach import reach_discs, reach_samples, solved, with_reach
+
+if TYPE_CHECKING:
+    from scipy import spatial
+else:
+    spatial = lazy("scipy.spatial")
 
 __all__ = ["Blend", "Deformation", "blended_points", "crossing_handles", "deform", "levelled_handles", "turned"]
 
@@ -105,10 +113,8 @@ class Blend:
 
     def raw_weights_at(self, vertices: NDArray[np.float64]) -> NDArray[np.float64]:
         """The raw weights carried to another mesh's vertices (n, 3): taken where a vertex is one of this mesh's, else interpolated."""
-        from scipy.spatial import cKDTree
-
         # most vertices of a new mesh are vertices of the old one (the same icosphere, refined alike far from what moved)
-        distance, nearest = cKDTree(self.vertices).query(vertices)
+        distance, nearest = spatial.cKDTree(self.vertices).query(vertices)
         out = self.raw_weights[nearest]
         moved = np.flatnonzero(distance > 1e-12)
         if len(moved):
@@ -339,7 +345,6 @@ def _blended(
         constraints, fixed, fixed_values = with_background(constraints, mesh.vertices, background, insides)
     b, bc, clashes = _merge_duplicates(sample_index, constraints.values, constraints.controls, handles)
     b, bc = _with_fixed(b, bc, fixed, fixed_values)
-    from .bbw import bbw, normalize_rows  # scipy's sparse solvers load with the first solve, not with the package
 
     raw = _previous_weights(previous, mesh.vertices, mesh.faces, b, bc)
     if raw is None:
@@ -429,8 +434,6 @@ def blended_points(
     ndarray of float64, shape (..., 2)
         The input ``[lon, lat]`` (degrees) each direction shows.
     """
-    from ..method.locate import locate_points
-
     xyz = np.asarray(xyz, dtype=np.float64)
     flat = xyz.reshape(-1, 3)
     face, bary = locate_points(vertices, faces, flat)

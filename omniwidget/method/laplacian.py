@@ -7,9 +7,17 @@ problem as references). Also the checks of a mesh and of boundary conditions all
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
+
+from .._lazy import lazy
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+else:
+    sp = lazy("scipy.sparse")
 
 __all__ = ["DEGENERATE_AREA", "as_constraints", "as_mesh", "bilaplacian", "checked_bilaplacian", "cotangent_laplacian", "mass_matrix"]
 

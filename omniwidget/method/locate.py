@@ -20,12 +20,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _native
 from .._checks import whole_number
+from .._lazy import lazy
 from ..sphere import coords
+
+if TYPE_CHECKING:
+    from scipy import spatial
+else:
+    spatial = lazy("scipy.spatial")
 
 __all__ = [
     "DEGENERATE",
@@ -236,16 +244,14 @@ def _cap_pairs(mesh: _Mesh, p: FloatArray, usable: IntArray, centroids: FloatArr
     Faces are grouped by radius, within a factor of two, so that each group's range search
     finds few faces that are not candidates.
     """
-    from scipy.spatial import cKDTree  # noqa: PLC0415
-
     radius = np.linalg.norm(mesh.vertices[mesh.faces[usable]] - centroids[:, None, :], axis=2).max(axis=1)
     radius = np.where(radius > math.sqrt(2.0), 2.0, radius) + 1e-9
     group = np.floor(np.log2(radius / radius.min())).astype(np.int64)
-    points = cKDTree(p)
+    points = spatial.cKDTree(p)
     point_idx, face_idx = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
     for g in np.unique(group):
         members = np.flatnonzero(group == g)
-        near = points.sparse_distance_matrix(cKDTree(centroids[members]), float(radius[members].max()), output_type="ndarray")
+        near = points.sparse_distance_matrix(spatial.cKDTree(centroids[members]), float(radius[members].max()), output_type="ndarray")
         i, j = near["i"].astype(np.int64), near["j"].astype(np.int64)
         inside = near["v"] <= radius[members][j]
         point_idx.append(i[inside])
@@ -261,8 +267,6 @@ def _locate(mesh: _Mesh, p: FloatArray) -> IntArray:
     whose bounding cap contains them; on a direction shared by several faces, the one it is
     deepest in wins.
     """
-    from scipy.spatial import cKDTree  # noqa: PLC0415 - keep scipy out of `import omniwidget`
-
     n_points = len(p)
     face = np.zeros(n_points, np.int64)
     if n_points == 0:
@@ -271,7 +275,7 @@ def _locate(mesh: _Mesh, p: FloatArray) -> IntArray:
     centroids = mesh.vertices[mesh.faces[usable]].sum(axis=1)
     centroids /= np.linalg.norm(centroids, axis=1, keepdims=True)
     k = min(8, len(usable))
-    tree = cKDTree(centroids)
+    tree = spatial.cKDTree(centroids)
     found = np.zeros(n_points, bool)
     for start in range(0, n_points, 8192):
         block = slice(start, start + 8192)
@@ -469,7 +473,6 @@ def _grid_faces(mesh: _Mesh, width: int) -> tuple[NDArray[np.int32], FloatArray,
     cos_lat, sin_lat = meridian[:, 0], meridian[:, 2]
 
     run_face, flat_start, length = _runs(mesh, width, cos_lat, sin_lat)
-    from .. import _native  # noqa: PLC0415 - the compiled kernels, when they are there, load only now
 
     if _native.available():  # paint the runs in one pass, without index arrays
         face = np.full(height * width, -1, np.int32)

@@ -23,11 +23,21 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import whole_number
+from .._lazy import lazy
+
+if TYPE_CHECKING:
+    from scipy import sparse, spatial
+    from scipy.sparse import csgraph
+else:
+    sparse = lazy("scipy.sparse")
+    csgraph = lazy("scipy.sparse.csgraph")
+    spatial = lazy("scipy.spatial")
 
 __all__ = [
     "DEFAULT_THRESHOLD_EDGES",
@@ -341,16 +351,12 @@ def _thresholds(threshold: float | Sequence[float] | None, base_level: int, roun
 
 def _merge_samples(samples: FloatArray) -> tuple[FloatArray, IntArray]:
     """Distinct samples (first of each cluster closer than MERGE_CHORD) and each sample's cluster."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
     k = len(samples)
-    pairs = cKDTree(samples).query_pairs(MERGE_CHORD, output_type="ndarray")
+    pairs = spatial.cKDTree(samples).query_pairs(MERGE_CHORD, output_type="ndarray")
     if len(pairs) == 0:
         return samples, np.arange(k, dtype=np.int64)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(k, k))
-    _, labels = connected_components(graph, directed=False)
+    graph = sparse.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(k, k))
+    _, labels = csgraph.connected_components(graph, directed=False)
     _, first, inverse = np.unique(labels, return_index=True, return_inverse=True)
     order = np.argsort(first)  # clusters by first occurrence
     rank = np.empty_like(order)
@@ -359,9 +365,7 @@ def _merge_samples(samples: FloatArray) -> tuple[FloatArray, IntArray]:
 
 
 def _hull_faces(vertices: FloatArray) -> IntArray:
-    from scipy.spatial import ConvexHull
-
-    return _orient_outward(vertices, ConvexHull(vertices).simplices.astype(np.int64))
+    return _orient_outward(vertices, spatial.ConvexHull(vertices).simplices.astype(np.int64))
 
 
 def adaptive_mesh(
@@ -429,10 +433,8 @@ def adaptive_mesh(
         base = (_frozen(base_vertices), _frozen(base_faces))
         return SphereMesh(*base, sample_index=_frozen(np.empty(0, dtype=np.int64)), rounds=(base,) * (rounds + 1))
 
-    from scipy.spatial import cKDTree
-
     distinct, cluster = _merge_samples(samples)
-    tree = cKDTree(distinct)
+    tree = spatial.cKDTree(distinct)
 
     # 1-2. Refinement rounds: split faces whose (normalised) barycentre is near a sample.
     splitter = _Splitter(base_vertices)
@@ -465,7 +467,7 @@ def adaptive_mesh(
         # qhull left out points it could not separate from a neighbour (far below any
         # realistic spacing): drop them and send their samples to the nearest hull vertex.
         remap = np.cumsum(used) - 1
-        nearest_used = np.flatnonzero(used)[cKDTree(vertices[used]).query(vertices[~used])[1]]
+        nearest_used = np.flatnonzero(used)[spatial.cKDTree(vertices[used]).query(vertices[~used])[1]]
         remap[~used] = remap[nearest_used]
         vertices, faces, sample_index = vertices[used], remap[faces], remap[sample_index]
 
