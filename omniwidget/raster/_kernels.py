@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from .. import _native
 from .._native import available
-from ..method.locate import EDGE_TOLERANCE, face_neighbours
+from ..method.locate import EDGE_TOLERANCE, face_neighbours, locate_faces
 from ..sphere import coords
 from ..sphere.moebius import Moebius
 from .warping import PAD, run_blocks
@@ -161,8 +161,6 @@ def walk_blend(
         lambda rows: kernel(rows.start, rows.stop, 0, planes, slack, neighbours, walk, *mesh[1:], *grid, out, face, missed),
     )
     if missed.any():
-        from ..method.locate import locate_faces
-
         face, planes = locate_faces(v, f, width)
         out = blend_coordinates(face, planes, f, weights, inverses, src_width)
     return out, face, planes

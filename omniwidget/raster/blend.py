@@ -19,7 +19,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ..method.locate import interpolate
+from ..method.locate import interpolate, locate_points
 from ..sphere import coords
 from ..sphere.moebius import Moebius
 from .warping import GridInverse, grid_homogeneous
@@ -76,8 +76,6 @@ def grid_pixel_weights(
         Grid nodes around the equator (even); nodes sit at pixel centres of a ``grid``
         wide equirectangular image.
     """
-    from ..method.locate import locate_points
-
     lon, lat = coords.grid_lonlat(grid)
     nodes = coords.lonlat_to_xyz(np.stack(np.meshgrid(lon, lat), axis=-1)).reshape(-1, 3)
     face, bary = locate_points(vertices, faces, nodes)

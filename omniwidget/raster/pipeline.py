@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._blas import one_blas_thread
 from .._checks import whole_number
+from .._lazy import lazy
 from .._timing import Laps
 from ..document.handles import Handles
 from ..method.background import BACKGROUND
@@ -30,6 +31,7 @@ from ..method.harmonic import HarmonicFill
 from ..method.locate import interpolate, locate_grid
 from ..method.problems import Kind, Problem
 from ..sphere import coords
+from ..sphere.arcs import inside_polygon
 from ..sphere.moebius import Moebius
 from . import _kernels
 from .blend import blended_inverse, mesh_blended_inverse, mesh_pixel_weights
@@ -50,7 +52,13 @@ from .warping import (
 )
 
 if TYPE_CHECKING:
+    from scipy import ndimage
+
+    from ..evaluate import quality as evaluate_quality
     from ..evaluate.quality import Summary
+else:
+    ndimage = lazy("scipy.ndimage")
+    evaluate_quality = lazy("omniwidget.evaluate.quality")  # above the engine: loaded when a warp is first measured
 
 __all__ = [
     "FOLD_WARNING_AREA",
@@ -309,9 +317,7 @@ class Result:
         tear, coverage, the mean displacement of the sphere and the motion inside fixed cages;
         ``result.quality.line()`` says it in one line.
         """
-        from ..evaluate.quality import summary
-
-        return summary(self)
+        return evaluate_quality.summary(self)
 
     @_measured_once
     def _inverse_map(self) -> NDArray[np.float64]:
@@ -498,8 +504,6 @@ def _kept(d: Deformation, width: int) -> tuple[list[tuple[int, NDArray[np.int64]
 
 def _held_pixels(d: Deformation, width: int) -> NDArray[np.bool_]:
     """The output pixels inside every cage and on every point's disk, which the untangling keeps as the blend has them."""
-    from ..sphere.arcs import inside_polygon
-
     mask = np.zeros((width // 2, width), bool)
     lon, lat = coords.grid_lonlat(width)
     for _, polygon in d.constraints.cages:
@@ -603,8 +607,6 @@ def _give_way(d: Deformation, folds: FoldOver, width: int, src_width: int, exact
 
 def _patch_count(mask: NDArray[np.bool_]) -> int:
     """How many separate turned-over patches a fold mask has."""
-    from scipy import ndimage
-
     return int(ndimage.label(mask, structure=np.ones((3, 3), bool))[1])
 
 

@@ -29,15 +29,23 @@ mesh face from its neighbour's (:func:`omniwidget.raster._kernels.blend_blocks`)
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._lazy import lazy
+from ..method.deformation import blended_points
 from ..method.locate import face_neighbours
 from ..sphere import coords
 from ..sphere.moebius import Moebius
 from . import _kernels
 from .warping import PAD
+
+if TYPE_CHECKING:
+    import cv2
+else:
+    cv2 = lazy("cv2")
 
 __all__ = ["BAND", "SAMPLE_FROM", "STEP", "TOLERANCE", "coarse_step", "sampled_coordinates"]
 
@@ -77,8 +85,6 @@ def coarse_step(width: int, step: int = STEP) -> int:
 
 def _grow(mask: NDArray[np.bool_], by: int) -> NDArray[np.bool_]:
     """``mask`` dilated by ``by`` samples in every direction, wrapping at the seam."""
-    import cv2
-
     if by <= 0:
         return mask
     wrapped = np.concatenate([mask[:, -by:], mask, mask[:, :by]], axis=1).astype(np.uint8)
@@ -170,8 +176,6 @@ def sampled_coordinates(  # noqa: PLR0913 - the blend's arrays as the kernels ta
     _kernels.interpolate_shift(shift, exact, src_width, out)
     missed = _kernels.blend_blocks(exact, face, planes, faces, weights, inverses, src_width, out, neighbours=neighbours)
     if missed.any():  # a pixel in none of the faces around its sample: located the long way
-        from ..method.deformation import blended_points
-
         m_rows, m_cols = np.nonzero(missed)
         lon, lat = coords.grid_lonlat(width)
         src = blended_points(inverses, vertices, faces, weights, coords.lonlat_to_xyz(np.stack([lon[m_cols], lat[m_rows]], axis=-1)))

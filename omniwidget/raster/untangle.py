@@ -23,13 +23,23 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._lazy import lazy
 from ..sphere import coords
 from .fold import turned_over
 from .warping import PAD, GridInverse, coordinates_lonlat
+
+if TYPE_CHECKING:
+    import scipy.sparse.linalg as spla
+    from scipy import ndimage, sparse
+else:
+    ndimage = lazy("scipy.ndimage")
+    sparse = lazy("scipy.sparse")
+    spla = lazy("scipy.sparse.linalg")
 
 __all__ = ["MARGIN", "Patch", "apply_patches", "line_mask", "line_pixels", "patched_inverse", "untangle"]
 
@@ -116,8 +126,6 @@ def untangle(
         a :data:`LARGEST` th of the width, is left out, and the fold check after it still
         shows it.
     """
-    from scipy import ndimage
-
     height, width = mask.shape
     if not mask.any():
         return []
@@ -263,8 +271,6 @@ def _untangle_grid(
 
 
 def _dilate(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    from scipy import ndimage
-
     return np.asarray(ndimage.binary_dilation(mask, structure=np.ones((3, 3), bool)))
 
 
@@ -440,17 +446,14 @@ def _lbfgs(fn: Callable[[NDArray[np.float64]], tuple[float, NDArray[np.float64]]
 
 def _harmonic(x: NDArray[np.float64], triangles: NDArray[np.int64], free: NDArray[np.bool_]) -> NDArray[np.float64]:
     """The free vertices where the grid's graph Laplacian is zero, the others held: the rim's harmonic fill."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.linalg import spsolve
-
     n = len(x)
     i = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    adjacency = coo_matrix((np.ones(len(i)), (i[:, 0], i[:, 1])), shape=(n, n)).tocsr()
+    adjacency = sparse.coo_matrix((np.ones(len(i)), (i[:, 0], i[:, 1])), shape=(n, n)).tocsr()
     adjacency = ((adjacency + adjacency.T) > 0).astype(np.float64)
-    laplacian = (coo_matrix((np.asarray(adjacency.sum(axis=1)).ravel(), (np.arange(n), np.arange(n))), shape=(n, n)) - adjacency).tocsr()
+    laplacian = (sparse.coo_matrix((np.asarray(adjacency.sum(axis=1)).ravel(), (np.arange(n), np.arange(n))), shape=(n, n)) - adjacency).tocsr()
     inner = laplacian[free][:, free]
     rhs = -laplacian[free][:, ~free] @ x[~free]
-    return np.asarray(spsolve(inner.tocsc(), rhs)).reshape(-1, 2)
+    return np.asarray(spla.spsolve(inner.tocsc(), rhs)).reshape(-1, 2)
 
 
 def _edge_parts(x: NDArray[np.float64], i: NDArray, j: NDArray, k: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:

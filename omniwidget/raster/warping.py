@@ -15,15 +15,21 @@ import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import check_panorama, whole_number
+from .._lazy import lazy
 from ..errors import ImageError
 from ..sphere import coords
 from ..sphere.moebius import Moebius
+
+if TYPE_CHECKING:
+    import cv2
+else:
+    cv2 = lazy("cv2")
 
 __all__ = [
     "ORDERS",
@@ -281,8 +287,6 @@ class PanoramaSource(Protocol):
 
 
 def _interpolation(order: str) -> int:
-    import cv2
-
     if order not in ORDERS:
         raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {order!r}")
     return int({"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR, "bicubic": cv2.INTER_CUBIC}[order])
@@ -388,8 +392,6 @@ def _padded_take(take: Callable[[NDArray[np.int64], NDArray[np.int64]], NDArray]
 
 def _cv_remap(image: NDArray, coordinates: NDArray[np.float32], interpolation: int) -> NDArray:
     """One call of OpenCV's remap (both sides under :data:`REMAP_LIMIT`), the channel axis kept."""
-    import cv2
-
     if image.ndim == 3 and image.shape[2] == 2:  # OpenCV samples two channels on a coarser grid (1/32 pixel): one at a time
         return np.dstack([_cv_remap(np.ascontiguousarray(image[..., k]), coordinates, interpolation) for k in range(2)])
 
