@@ -5,9 +5,11 @@ maps), :mod:`omniwidget.document` (the handles), :mod:`omniwidget.method` (contr
 Sec. 3.4 solve, mesh, bounded biharmonic weights), :mod:`omniwidget.raster` (the per-pixel
 engine), :mod:`omniwidget.detect` (suggested lines, levelling), :mod:`omniwidget.evaluate`,
 :mod:`omniwidget.io`, :mod:`omniwidget.app`, then the widget and the pane; each imports only
-the layers before it. The core needs only numpy,
-scipy and OpenCV; importing :mod:`omniwidget` loads nothing more (the notebook editor,
-``omniwidget.Editor`` in :mod:`omniwidget.widget`, loads anywidget when first used).
+the layers before it. The core needs only numpy, scipy and OpenCV. Importing
+:mod:`omniwidget` loads none of them: each public name is imported from its module when
+first read, and each module names its heavy dependencies at its top with
+:func:`omniwidget._lazy.lazy`, imported when first used (the notebook editor,
+``omniwidget.Editor`` in :mod:`omniwidget.widget`, loads anywidget then).
 Positions at every public boundary are ``[lon, lat]`` in degrees (conventions: :mod:`omniwidget.sphere.coords`).
 
 Examples

@@ -30,10 +30,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._blas import one_blas_thread
+from ..detect.level import level as find_level
 from ..detect.lines import DETECT_WIDTH, Suggestion, suggest_lines, suggestions_to_handles
-from ..detect.structure import Reason
+from ..detect.structure import Reason, choose_structure
 from ..document.handles import Handles, Options
 from ..errors import LevelError
+from ..evaluate.quality import dense_line
+from ..io.draw import display_rgb, draw_polyline
+from ..method.constraints import build_constraints
+from ..method.deformation import crossing_handles, levelled_handles
+from ..raster.pipeline import warp
+from ..sphere import coords
 
 if TYPE_CHECKING:
     from ..detect.level import Level
@@ -137,10 +144,6 @@ class Straightened:
             The input with the lines where they were found, and the result with each line where
             its pixels landed (found densely through the map that placed them).
         """
-        from ..evaluate.quality import dense_line
-        from ..io.draw import display_rgb, draw_polyline
-        from ..sphere import coords
-
         before, after = display_rgb(image).copy(), display_rgb(self.image).copy()
         placed = self.result.placed_map()
         lines, controls = self.result.constraints.lines, self.result.controls
@@ -178,9 +181,6 @@ def find_structure(image: NDArray[Any], *, max_lines: int | None = MAX_LINES, le
     ImageError
         If ``image`` is not a usable panorama.
     """
-    from ..detect.level import level as find_level
-    from ..detect.structure import choose_structure
-
     if max_lines is not None and (isinstance(max_lines, bool) or not isinstance(max_lines, int | np.integer) or max_lines < 1):
         raise ValueError(f"max_lines must be a positive integer or None, got {max_lines!r}")
     every = suggest_lines(image, max_lines=None, structure=False)  # once: the levelling and the choice look among the same lines
@@ -206,9 +206,6 @@ def _uncrossed(found: Structure, rounds: int = 3) -> Structure:
     between them, so the later of each pair goes. The solve is made again without them,
     at most ``rounds`` times.
     """
-    from ..method.constraints import build_constraints
-    from ..method.deformation import crossing_handles, levelled_handles
-
     for _ in range(rounds):
         constraints = build_constraints(levelled_handles(found.handles), upright=found.handles.options.up is not None)
         reasons = {
@@ -277,8 +274,6 @@ def straighten(
     >>> done.handles.options.up is not None  # levelled: the document says where up was
     True
     """
-    from ..raster.pipeline import warp
-
     found = structure if structure is not None else find_structure(image, max_lines=max_lines, level=level)
     result = warp(image, found.handles, width=width, warn=False)
     if result.gave_way:  # where the blend folded beyond untangling: those lines are not straight there

@@ -23,16 +23,27 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .._checks import check_panorama
+from .._lazy import lazy
 from ..document.handles import Handles, LineHandle, Options
 from ..errors import ImageError
 from ..sphere import coords
 from .structure import choose_structure
+
+if TYPE_CHECKING:
+    import cv2
+    from skimage import feature, transform
+else:
+    cv2 = lazy("cv2")
+    feature = lazy("skimage.feature")
+    transform = lazy("skimage.transform")
 
 __all__ = [
     "KINDS",
@@ -170,8 +181,6 @@ def panorama_gray(image: NDArray, name: str = "image") -> NDArray[np.uint8]:
     """
     check_detectable(image, name)
     if image.shape[1] > DETECT_WIDTH:
-        import cv2
-
         image = cv2.resize(image, (DETECT_WIDTH, DETECT_WIDTH // 2), interpolation=cv2.INTER_AREA)
     if image.ndim == 3 and image.shape[2] >= 3:
         rgb = image[..., :3]
@@ -274,7 +283,6 @@ def render_view(gray: NDArray[np.uint8], view: View) -> NDArray[np.uint8]:
     ndarray of uint8, shape (view.size, view.size)
     """
     h, w = gray.shape
-    import cv2  # OpenCV loads with the first detection, not with the package
 
     map_x, map_y = _view_maps(view, w, h)
     wrapped = np.concatenate([gray, gray[:, :1]], axis=1)
@@ -351,18 +359,13 @@ def detect_segments(view_image: NDArray[np.uint8], detector: str = "lsd") -> tup
     contrast : ndarray of float64, shape (k,)
         Mean absolute brightness difference between the two sides, in ``[0, 1]``.
     """
-    import cv2
-
     if detector == "lsd":
         lsd = cv2.createLineSegmentDetector(cv2.LSD_REFINE_STD, LSD_SCALE, 0.6, 2.0, LSD_ANGLE)
         found = lsd.detect(view_image)[0]
         segments = np.empty((0, 4)) if found is None else found.reshape(-1, 4).astype(np.float64)
     elif detector == "hough":
-        from skimage.feature import canny
-        from skimage.transform import probabilistic_hough_line
-
-        edges = canny(view_image.astype(np.float64) / 255.0, sigma=1.5, low_threshold=0.05, high_threshold=0.12)
-        found_h = probabilistic_hough_line(edges, threshold=10, line_length=int(MIN_SEGMENT_PX * 2), line_gap=2, rng=0)
+        edges = feature.canny(view_image.astype(np.float64) / 255.0, sigma=1.5, low_threshold=0.05, high_threshold=0.12)
+        found_h = transform.probabilistic_hough_line(edges, threshold=10, line_length=int(MIN_SEGMENT_PX * 2), line_gap=2, rng=0)
         segments = np.array([[p[0], p[1], q[0], q[1]] for p, q in found_h], dtype=np.float64).reshape(-1, 4)
     else:
         raise ValueError(f"detector must be 'lsd' or 'hough', got {detector!r}")
@@ -375,7 +378,6 @@ def _contrast(view_image: NDArray[np.uint8], segments: FloatArray, samples: int 
     """Mean ``|I(left) - I(right)|`` / 255 at ``samples`` points along each segment, ``offset`` pixels to each side."""
     if len(segments) == 0:
         return np.empty(0)
-    import cv2
 
     p, q = segments[:, None, :2], segments[:, None, 2:]
     t = np.linspace(0.1, 0.9, samples)[None, :, None]
@@ -1222,8 +1224,6 @@ def find_arcs(gray: NDArray[np.uint8], *, detector: str = "lsd", views: Sequence
 
     workers = min(len(views), os.cpu_count() or 1)
     if workers > 1:  # the views are independent, and numpy's and OpenCV's work in them lets other threads run
-        from concurrent.futures import ThreadPoolExecutor
-
         with ThreadPoolExecutor(workers, thread_name_prefix="omniwidget-detect") as pool:
             found = list(pool.map(lifted, views))
     else:

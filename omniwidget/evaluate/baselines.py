@@ -45,12 +45,13 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import whole_number
+from .._lazy import lazy
 from ..document.handles import CageHandle, Handles, Options, PointHandle
 from ..method.constraints import SAMPLES, Constraints, Control, build_constraints
 from ..method.deformation import Deformation
@@ -72,6 +73,11 @@ from ..raster.warping import (
 from ..sphere import coords
 from .content_preserving import ContentPreservingResult, content_preserving
 from .quality import FoldOver, Summary, fold_over, summary
+
+if TYPE_CHECKING:
+    from scipy import spatial
+else:
+    spatial = lazy("scipy.spatial")
 
 __all__ = [
     "METHODS",
@@ -328,11 +334,9 @@ def single_moebius(
 
 def _nearest_control(constraints: Constraints) -> Callable[[NDArray[np.float64]], NDArray[np.intp]]:
     """``fn(lonlat (n, 2)) -> (n,)``: the control owning the prescribed point nearest each position."""
-    from scipy.spatial import cKDTree
-
     lonlat, owns = _sites(constraints)
     owner = np.argmax(owns, axis=1)  # ties (joints): the first line
-    tree = cKDTree(coords.lonlat_to_xyz(lonlat))  # nearest by chord is nearest by arc
+    tree = spatial.cKDTree(coords.lonlat_to_xyz(lonlat))  # nearest by chord is nearest by arc
 
     def fn(positions: NDArray[np.float64]) -> NDArray[np.intp]:
         return owner[tree.query(coords.lonlat_to_xyz(positions))[1]]
@@ -434,11 +438,9 @@ def _radii(handles: Handles, constraints: Constraints) -> NDArray[np.float64]:
 
 def _gaussian_weights(constraints: Constraints, sigma: NDArray[np.float64]) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
     """``fn(lonlat (n, 2)) -> (n, k)``: each control's Gaussian of the distance from its sites."""
-    from scipy.spatial import cKDTree
-
     lonlat, owns = _sites(constraints)
     sites = [lonlat[owns[:, j]] for j in range(owns.shape[1])]
-    trees = [cKDTree(coords.lonlat_to_xyz(s)) if len(s) else None for s in sites]
+    trees = [spatial.cKDTree(coords.lonlat_to_xyz(s)) if len(s) else None for s in sites]
     # chord length of the cut-off arc: beyond it the kd-tree stops looking
     bounds = [2 * math.sin(math.radians(min(_CUTOFF_SIGMAS * s, 180.0)) / 2) * (1 + 1e-9) for s in sigma]
 

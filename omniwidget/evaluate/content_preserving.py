@@ -42,18 +42,24 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
-from scipy.sparse.linalg import LinearOperator, cg, splu
 
 from .._checks import check_panorama, whole_number
+from .._lazy import lazy
 from ..document.handles import CageHandle, Handles, LineHandle
 from ..raster.warping import ORDERS, PAD, Order, remap_panorama
 from ..sphere import coords
 from .quality import Summary, straightness
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+else:
+    sp = lazy("scipy.sparse")
+    spla = lazy("scipy.sparse.linalg")
 
 __all__ = [
     "ITERATIONS",
@@ -685,13 +691,13 @@ class _System:
         if not (self.factor and self.factor[1].shape == (lhs.shape[0],)):
             return None
         lu, guess = self.factor
-        x, info = cg(lhs, rhs, x0=guess, rtol=1e-13, atol=0.0, maxiter=60, M=LinearOperator(lhs.shape, lu.solve))
+        x, info = spla.cg(lhs, rhs, x0=guess, rtol=1e-13, atol=0.0, maxiter=60, M=spla.LinearOperator(lhs.shape, lu.solve))
         return x if info == 0 else None
 
     def _factored(self, lhs: sp.csc_matrix, rhs: NDArray[np.float64]) -> NDArray[np.float64]:
         """The normal equations solved by a fresh sparse LU (kept for the next solve)."""
         try:
-            lu = splu(lhs, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+            lu = spla.splu(lhs, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         except RuntimeError:
             raise ValueError(_SINGULAR) from None
         x = lu.solve(rhs)

@@ -39,16 +39,17 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import whole_number
+from ..detect.lines import suggest_lines, suggestions_to_handles
+from ..document.handles import CageHandle, Handles, LineHandle, Options, PointHandle
 from ..sphere import coords
-
-if TYPE_CHECKING:
-    from ..document.handles import Handles, PointHandle
+from ..sphere.arcs import inside_polygon
+from .quality import straightness
 
 __all__ = [
     "BOX_ROOM_TOLERANCE",
@@ -353,8 +354,6 @@ def mark_lines(
     list of SceneLine
         At most ``count``, fewer if the scene has no more that fit.
     """
-    from .quality import straightness
-
     rng = np.random.default_rng(seed)
     t = np.linspace(0, 1, 60)
     width = scene.image.shape[1]
@@ -373,8 +372,6 @@ def mark_lines(
 
 def _line_cloud(line: SceneLine, t: FloatArray) -> FloatArray:
     """A line's samples at parameters ``t`` and their eq. (4) images, ``[lon, lat]``, shape (2 len(t), 2)."""
-    from ..document.handles import LineHandle
-
     src = coords.geodesic(line.start, line.end, t)
     return np.concatenate([src, LineHandle(line.start, line.end).moebius()(src)])
 
@@ -484,8 +481,6 @@ def close_pair(
     ValueError
         If the scene has no such pair.
     """
-    from .quality import straightness
-
     t = np.linspace(0.0, 1.0, 60)
     pieces = [
         p
@@ -685,8 +680,6 @@ def family_scene(family: str, seed: int, width: int = 2048) -> tuple[Scene, Hand
         result = omniwidget.warp(scene.image, doc)
         quality.cage_fidelity(result, truth["cage_handles"][0], truth["rotations"][0])
     """
-    from ..document.handles import CageHandle, Handles, LineHandle, Options
-
     if not isinstance(family, str) or family not in FAMILIES:
         raise ValueError(f"family must be one of {', '.join(FAMILIES)}, got {family!r}")
     seed = whole_number(seed, "seed", 0)
@@ -864,9 +857,6 @@ def _add_apart(picked: list[tuple[SceneLine, SceneLine]], candidates: Sequence[t
 
 def _suggested_scene(rng: np.random.Generator, seed: int, width: int) -> tuple[Scene, Handles, dict[str, Any]]:
     """The ``"suggested"`` family's scene, handles and truth (:func:`family_scene`)."""
-    from ..detect.lines import suggest_lines, suggestions_to_handles
-    from ..document.handles import Options
-
     room = _room_parameters(rng)
     max_lines = int(rng.integers(SUGGESTED_LINES[0], SUGGESTED_LINES[1] + 1))
     scene = synthetic_room(width, **room)
@@ -976,8 +966,6 @@ def _family_lines(
     :data:`FAMILY_MAX_ABS_LAT`, are taken in a random order and kept as :func:`mark_lines`
     keeps them (:func:`_pick_lines`), also apart from the lines ``kept`` already.
     """
-    from .quality import straightness
-
     if count == 0:
         return []
     t = np.linspace(0.0, 1.0, samples)
@@ -1049,8 +1037,6 @@ class _Cage:
 
         With ``within``, also no farther than that from them.
         """
-        from ..sphere.arcs import inside_polygon
-
         polygons = [np.array(self.vertices)] + ([np.array(self.targets)] if self.targets is not None else [])
         edges = np.concatenate([_edge_samples(p) for p in polygons])
 
@@ -1130,8 +1116,6 @@ def _random_points(
     rng: np.random.Generator, count: int, *, accept: Callable[[FloatArray], bool] | None = None, apart: float = 25.0
 ) -> list[PointHandle]:
     """Up to ``count`` point handles, ``apart`` degrees from each other, whose position and target ``accept`` takes."""
-    from ..document.handles import PointHandle
-
     out: list[PointHandle] = []
     for _ in range(200 * count):
         if len(out) == count:

@@ -35,8 +35,19 @@ import warnings
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from xml.etree import ElementTree
+
+from .._lazy import lazy
+
+if TYPE_CHECKING:
+    from PIL import Image, JpegImagePlugin, PngImagePlugin, TiffImagePlugin, WebPImagePlugin
+else:
+    JpegImagePlugin = lazy("PIL.JpegImagePlugin")
+    PngImagePlugin = lazy("PIL.PngImagePlugin")
+    TiffImagePlugin = lazy("PIL.TiffImagePlugin")
+    WebPImagePlugin = lazy("PIL.WebPImagePlugin")
+    Image = lazy("PIL.Image")
 
 __all__ = [
     "GPANO",
@@ -207,8 +218,6 @@ def _pillow_image(data: bytes | Path) -> Any:
     would refuse the panoramas of hundreds of megapixels omniwidget reads on purpose, and no
     pixel is decoded here.
     """
-    from PIL import JpegImagePlugin, PngImagePlugin, TiffImagePlugin, WebPImagePlugin
-
     try:
         fh: Any = io.BytesIO(data) if isinstance(data, bytes) else open(data, "rb")  # noqa: SIM115 - closed by the caller via the image
         head = fh.read(16)
@@ -275,7 +284,6 @@ def orientation(exif: bytes | None) -> int:
     """The EXIF Orientation (1 to 8) of an EXIF block (with or without ``Exif``), read by Pillow; 1 if absent or malformed."""
     if not exif:
         return 1
-    from PIL import Image
 
     parsed = Image.Exif()
     try:

@@ -47,27 +47,43 @@ from __future__ import annotations
 
 import html as _html
 import importlib.util
+import io
+import json
 import os
 import sys
 import threading
+import zipfile
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .._checks import check_panorama
+from .._checks import check_panorama, whole_number
+from .._lazy import lazy, resolve
 from ..app._latest import Latest
 from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
 from ..io.draw import display_rgb, draw_polyline
 from ..method.background import BACKGROUND
-from ..method.constraints import SAMPLES
+from ..method.constraints import SAMPLES, Constraints
 from ..method.deformation import Blend
+from ..method.locate import interpolate, locate_grid
+from ..method.mesh import adaptive_mesh
 from ..raster.pipeline import Result
 from ..sphere import coords
 
 if TYPE_CHECKING:  # pragma: no cover
+    import cv2
+    import ipywidgets
     import pyvista
+    from trame_vtk.modules.vtk import serializers
+    from trame_vtk.tools import vtksz2html
+else:
+    cv2 = lazy("cv2")
+    serializers = lazy("trame_vtk.modules.vtk.serializers")
+    pyvista = lazy("pyvista")
+    vtksz2html = lazy("trame_vtk.tools.vtksz2html")
+    ipywidgets = lazy("ipywidgets")
 
 if sys.platform.startswith("linux") and not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
@@ -101,10 +117,9 @@ _INSTALL_HINT = 'the 3D pane needs pyvista: pip install "pyvista>=0.49" (with om
 # --- checks --------------------------------------------------------------------------------
 def _pyvista() -> Any:
     try:
-        import pyvista
+        return resolve(pyvista)
     except ImportError as err:  # pragma: no cover - the tests skip without pyvista
         raise ImportError(_INSTALL_HINT) from err
-    return pyvista
 
 
 def _check_result(result: object) -> Result:
@@ -278,7 +293,6 @@ def _textured_soup(result: Result, weights: NDArray[np.float64], image: NDArray)
     repeats). A corner at a pole takes the mean longitude of the face's other corners.
     """
     pv = _pyvista()
-    import cv2
 
     faces = np.asarray(result.faces)
     corners = np.asarray(result.vertices)[faces].reshape(-1, 3)
@@ -456,33 +470,20 @@ def _html_export(plotter: Any) -> str:
     directly: serialise the render window, gather its arrays, zip them as a ``.vtksz`` scene
     and write it into trame-vtk's offline viewer page.
     """
-    import io
-    import json
-    import zipfile
-
-    from trame_vtk.modules.vtk.serializers import (
-        SynchronizationContext,
-        extract_array_hash,
-        initialize_serializers,
-        reference_id,
-        serialize,
-    )
-    from trame_vtk.tools.vtksz2html import write_html
-
-    initialize_serializers()
-    context = SynchronizationContext()
+    serializers.initialize_serializers()
+    context = serializers.SynchronizationContext()
     context.set_ignore_last_dependencies(True)
     window = plotter.render_window
     plotter.render()
     camera = plotter.renderer.GetActiveCamera()
-    scene = serialize(None, window, reference_id(window), context, 1)
-    scene["extra"] = {"vtkRefId": reference_id(window), "centerOfRotation": camera.GetFocalPoint(), "camera": reference_id(camera)}
-    hashes = {e["hash"]: {**e, "content": context.get_cached_data_array(e["hash"], False)} for e in extract_array_hash(scene)}
+    scene = serializers.serialize(None, window, serializers.reference_id(window), context, 1)
+    scene["extra"] = {"vtkRefId": serializers.reference_id(window), "centerOfRotation": camera.GetFocalPoint(), "camera": serializers.reference_id(camera)}
+    hashes = {e["hash"]: {**e, "content": context.get_cached_data_array(e["hash"], False)} for e in serializers.extract_array_hash(scene)}
     archive = io.BytesIO()
     with zipfile.ZipFile(archive, "w") as z:
         z.writestr("index.json", json.dumps({"hashes": hashes, "scene": scene}), compress_type=zipfile.ZIP_DEFLATED)
     page = io.StringIO()
-    write_html(archive.getvalue(), page)
+    vtksz2html.write_html(archive.getvalue(), page)
     return page.getvalue().replace(_FAVICON, "data:,")
 
 
@@ -517,11 +518,6 @@ def weights_overlay(
     ndarray of uint8, shape (width // 2, width, 3)
         RGB.
     """
-    import cv2
-
-    from .._checks import whole_number
-    from ..method.locate import interpolate, locate_grid
-
     result, blend = _result_mesh(result)
     vertices, faces = blend.vertices, blend.faces
     handle = _check_handle(result, handle)
@@ -571,9 +567,6 @@ def refinement_rounds(source: Result | object) -> list[tuple[NDArray[np.float64]
         for plotting), and last the final mesh with the samples added (for a Result, its own
         ``vertices`` and ``faces``). Vertex counts increase from entry to entry.
     """
-    from ..method.constraints import Constraints
-    from ..method.mesh import adaptive_mesh
-
     own: tuple[NDArray[np.float64], NDArray[np.int64]] | None = None
     if isinstance(source, Result):
         checked, blend = _result_mesh(source)
@@ -600,8 +593,6 @@ def _choose_backend(backend: str) -> str:
 
 
 def _png(rgb: NDArray[np.uint8]) -> bytes:
-    import cv2
-
     ok, data = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
     if not ok:  # pragma: no cover
         raise RuntimeError("could not encode the render as PNG")
@@ -665,8 +656,6 @@ class WeightsPane:
         texture: bool = False,
         zoom: float = 1.0,
     ) -> None:
-        import ipywidgets
-
         self.backend = _choose_backend(backend)
         self._window_size = window_size
         self._texture = bool(texture)
