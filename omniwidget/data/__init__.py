@@ -10,6 +10,8 @@ from pathlib import Path
 
 from numpy.typing import NDArray
 
+from ..io.images import read_image
+
 __all__ = ["sample_image", "sample_path"]
 
 _HERE = Path(__file__).parent
@@ -22,6 +24,4 @@ def sample_path() -> Path:
 
 def sample_image() -> NDArray:
     """The bundled panorama as an RGB uint8 array, shape (512, 1024, 3)."""
-    from ..io.images import read_image
-
     return read_image(sample_path())
