@@ -218,7 +218,7 @@ def _add_warp_arguments(parser: argparse.ArgumentParser, command: str) -> None:
     )
     if command == "warp":
         source = parser.add_mutually_exclusive_group(required=True)
-        source.add_argument("-H", "--handles", type=Path, help="handles file (JSON, see the README)")
+        source.add_argument("-H", "--handles", type=Path, help="handles file (JSON: docs/handles-file.md)")
         source.add_argument("--apply-map", type=Path, metavar="MAP", help="a map saved with --map (.npy) instead of handles")
     else:
         parser.add_argument("-H", "--handles", type=Path, help="also save the handles used (JSON): open them in the editor to change them")

@@ -57,7 +57,7 @@ __all__ = [
 
 FORMAT = "omniwidget.handles"
 VERSION = 1
-#: The anchor distance (degrees) that measured best on rooms of 6 to 10 lines (the README's "A still background").
+#: The anchor distance (degrees) that measured best on rooms of 6 to 10 lines (bench/RESULTS.md, "The still background").
 SUGGESTED_ANCHOR = 5.0
 #: ``options.anchor``'s default: the still background at :data:`SUGGESTED_ANCHOR` (None: the paper's method).
 DEFAULT_ANCHOR: float | None = SUGGESTED_ANCHOR
