@@ -207,13 +207,14 @@ class Detection:
     def level(self, wait: bool = False, then: Then | None = None) -> None:
         """Level the panorama in the background (see :meth:`EditingSession.level`); ``then()`` once the handles changed (or did not)."""
         self._claim("level", "levelled")
-        self._start("level", lambda: self._level_job(then), "levelling: finding the vertical edges...", wait)
+        self._start("level", lambda: self._claimed("level", self._level, then), "levelling: finding the vertical edges...", wait)
 
-    def _level_job(self, then: Then | None) -> None:
+    def _claimed(self, job: Job, work: Callable[[], None], then: Then | None) -> None:
+        """Run a job :meth:`_claim` marked running: ``work()``, then free the job and answer ``then``, whatever happened."""
         try:
-            self._level()
+            work()
         finally:
-            self._running["level"] = False
+            self._running[job] = False
             _answer(then)
 
     def _level(self) -> None:
@@ -256,14 +257,7 @@ class Detection:
         """Straighten the panorama in the background (see :meth:`EditingSession.straighten`); ``then()`` once the handles changed (or did not)."""
         self._claim("straighten", "straightened")
         message = "straightening: levelling, finding the structure, rectifying it..."
-        self._start("straighten", lambda: self._straighten_job(then), message, wait)
-
-    def _straighten_job(self, then: Then | None) -> None:
-        try:
-            self._straighten()
-        finally:
-            self._running["straighten"] = False
-            _answer(then)
+        self._start("straighten", lambda: self._claimed("straighten", self._straighten, then), message, wait)
 
     def _straighten(self) -> None:
         from .straighten import straighten
