@@ -21,13 +21,13 @@ Examples
 (512, 1024, 3)
 """
 
-from typing import TYPE_CHECKING
+import typing as _typing
 
-from ._lazy import lazy, resolve
+from . import _lazy
 from ._version import __version__
 from .errors import HandlesError, ImageError, LevelError, OmniwidgetError
 
-if TYPE_CHECKING:  # what the public names are, for type checkers and IDEs; at run time each loads when first read
+if _typing.TYPE_CHECKING:  # what the public names are, for type checkers and IDEs; at run time each loads when first read
     from .app.straighten import Straightened, Structure, find_structure, straighten
     from .data import sample_image, sample_path
     from .detect.level import Level, level, level_document
@@ -44,21 +44,21 @@ if TYPE_CHECKING:  # what the public names are, for type checkers and IDEs; at r
 #: Each public name and the module it is read from, on first use (``import omniwidget`` loads none of them: the
 #: command line's ``--help`` and a script that needs one function do not pay for the rest).
 _PUBLIC: tuple[tuple[object, tuple[str, ...]], ...] = (
-    (lazy("omniwidget.app.straighten"), ("Straightened", "Structure", "find_structure", "straighten")),
-    (lazy("omniwidget.data"), ("sample_image", "sample_path")),
-    (lazy("omniwidget.detect.level"), ("Level", "level", "level_document")),
-    (lazy("omniwidget.detect.lines"), ("Suggestion", "suggest_lines", "suggestions_to_handles")),
+    (_lazy.lazy("omniwidget.app.straighten"), ("Straightened", "Structure", "find_structure", "straighten")),
+    (_lazy.lazy("omniwidget.data"), ("sample_image", "sample_path")),
+    (_lazy.lazy("omniwidget.detect.level"), ("Level", "level", "level_document")),
+    (_lazy.lazy("omniwidget.detect.lines"), ("Suggestion", "suggest_lines", "suggestions_to_handles")),
     (
-        lazy("omniwidget.document.handles"),
+        _lazy.lazy("omniwidget.document.handles"),
         ("CageHandle", "Handles", "LineHandle", "Options", "PointHandle", "load_handles", "save_handles"),
     ),
-    (lazy("omniwidget.io.images"), ("read_image", "read_panorama", "to_equirectangular", "write_image")),
-    (lazy("omniwidget.raster.perspective"), ("PerspectiveView", "view")),
-    (lazy("omniwidget.raster.pipeline"), ("BlendWarning", "Result", "warp")),
-    (lazy("omniwidget.raster.warping"), ("WarpResult", "warp_moebius")),
-    (lazy("omniwidget.sphere.coords"), ("lonlat_to_px", "lonlat_to_xyz", "px_to_lonlat", "xyz_to_lonlat")),
-    (lazy("omniwidget.sphere.moebius"), ("Moebius",)),
-    (lazy("omniwidget.widget"), ("Editor",)),  # the notebook editor: anywidget loads with it
+    (_lazy.lazy("omniwidget.io.images"), ("read_image", "read_panorama", "to_equirectangular", "write_image")),
+    (_lazy.lazy("omniwidget.raster.perspective"), ("PerspectiveView", "view")),
+    (_lazy.lazy("omniwidget.raster.pipeline"), ("BlendWarning", "Result", "warp")),
+    (_lazy.lazy("omniwidget.raster.warping"), ("WarpResult", "warp_moebius")),
+    (_lazy.lazy("omniwidget.sphere.coords"), ("lonlat_to_px", "lonlat_to_xyz", "px_to_lonlat", "xyz_to_lonlat")),
+    (_lazy.lazy("omniwidget.sphere.moebius"), ("Moebius",)),
+    (_lazy.lazy("omniwidget.widget"), ("Editor",)),  # the notebook editor: anywidget loads with it
 )
 _WHERE = {name: module for module, names in _PUBLIC for name in names}
 #: The subpackages the public names come from, read as attributes (``omniwidget.raster``) before any is imported.
@@ -68,9 +68,9 @@ _SUBPACKAGES = frozenset({"app", "data", "detect", "document", "io", "method", "
 def __getattr__(name: str) -> object:
     """A public name (or subpackage) of the package, imported from its module when first read, then kept."""
     if name in _WHERE:
-        value = getattr(resolve(_WHERE[name]), name)
+        value = getattr(_lazy.resolve(_WHERE[name]), name)
     elif name in _SUBPACKAGES:
-        value = resolve(lazy(f"omniwidget.{name}"))
+        value = _lazy.resolve(_lazy.lazy(f"omniwidget.{name}"))
     else:
         raise AttributeError(f"module 'omniwidget' has no attribute {name!r}")
     globals()[name] = value
