@@ -39,7 +39,7 @@ from ..evaluate.quality import dense_line
 from ..io.draw import display_rgb, draw_polyline
 from ..method.constraints import build_constraints
 from ..method.deformation import crossing_handles, levelled_handles
-from ..raster.pipeline import warp
+from ..raster import pipeline
 from ..sphere import coords
 
 if TYPE_CHECKING:
@@ -275,9 +275,9 @@ def straighten(
     True
     """
     found = structure if structure is not None else find_structure(image, max_lines=max_lines, level=level)
-    result = warp(image, found.handles, width=width, warn=False)
+    result = pipeline.warp(image, found.handles, width=width, warn=False)
     if result.gave_way:  # where the blend folded beyond untangling: those lines are not straight there
         found = _without(found, dict.fromkeys(result.gave_way, Reason("gave way in the warp, where the blend folded beyond untangling", GAVE_WAY)))
-        result = warp(image, found.handles, width=width, warn=False, previous=result)
+        result = pipeline.warp(image, found.handles, width=width, warn=False, previous=result)
     return Straightened(result, found)
 

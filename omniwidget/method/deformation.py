@@ -25,9 +25,8 @@ from ..document.handles import CageHandle, Handles, LineHandle, PointHandle
 from ..sphere import coords
 from ..sphere.arcs import crossing_pairs, inside_polygon
 from ..sphere.moebius import Moebius
-from . import harmonic
+from . import bbw, harmonic
 from .background import BACKGROUND, BACKGROUND_EASE, cage_insides, carry_insides, ease_background, with_background
-from .bbw import bbw, normalize_rows
 from .constraints import SAMPLES, Constraints, Control, build_constraints
 from .harmonic import HarmonicFill, harmonic_fill
 from .kinds import kind_of
@@ -349,8 +348,8 @@ def _blended(
     raw = _previous_weights(previous, mesh.vertices, mesh.faces, b, bc)
     if raw is None:
         check_weights(len(mesh.vertices), bc.shape[1])
-        raw = bbw(mesh.vertices, mesh.faces, b, bc, start=_warm_start(previous, constraints, mesh.vertices))
-    weights = normalize_rows(raw)
+        raw = bbw.bbw(mesh.vertices, mesh.faces, b, bc, start=_warm_start(previous, constraints, mesh.vertices))
+    weights = bbw.normalize_rows(raw)
     if background is not None:
         weights = ease_background(carry_insides(weights, insides), BACKGROUND_EASE)
         constraints, weights = with_reach(handles, constraints, mesh.vertices, weights)
