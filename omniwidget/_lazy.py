@@ -30,7 +30,7 @@ from __future__ import annotations
 import importlib
 import sys
 from types import ModuleType
-from typing import Any
+from typing import Any, NoReturn
 
 __all__ = ["INSTALL", "LazyModule", "lazy", "resolve"]
 
@@ -59,15 +59,21 @@ INSTALL: dict[str, str] = {
 class LazyModule:
     """A stand-in for the module ``name``: its attributes are the module's, imported at the first access."""
 
-    __slots__ = ("_lazy_name",)
+    __slots__ = ("_lazy_module", "_lazy_name")
+    _lazy_name: str
+    _lazy_module: ModuleType | None
 
     def __init__(self, name: str) -> None:
         if not isinstance(name, str) or not all(part.isidentifier() for part in name.split(".")):
             raise ValueError(f"a module name is dotted identifiers, got {name!r}")
         object.__setattr__(self, "_lazy_name", name)
+        object.__setattr__(self, "_lazy_module", None)  # the module last resolved: the fast path while sys.modules holds it
 
     def __getattr__(self, attr: str) -> Any:
-        return getattr(resolve(self), attr)
+        module = sys.modules.get(self._lazy_name)
+        if module is None or module is not self._lazy_module:
+            module = resolve(self)
+        return getattr(module, attr)
 
     def __setattr__(self, attr: str, value: Any) -> None:
         setattr(resolve(self), attr, value)
@@ -79,9 +85,8 @@ class LazyModule:
         return dir(resolve(self))
 
     def __repr__(self) -> str:
-        name = object.__getattribute__(self, "_lazy_name")
-        state = "imported" if sys.modules.get(name) is not None else "not imported yet"
-        return f"<lazy module {name!r} ({state})>"
+        state = "imported" if sys.modules.get(self._lazy_name) is not None else "not imported yet"
+        return f"<lazy module {self._lazy_name!r} ({state})>"
 
 
 def lazy(name: str) -> Any:
@@ -121,15 +126,21 @@ def resolve(module: Any) -> ModuleType:
         return module
     if not isinstance(module, LazyModule):
         raise TypeError(f"resolve() takes a module or a lazy() stand-in, got {type(module).__name__}")
-    name: str = object.__getattribute__(module, "_lazy_name")
+    name: str = module._lazy_name
     found = sys.modules.get(name)
-    if found is not None and not getattr(getattr(found, "__spec__", None), "_initializing", False):
-        return found
-    try:
-        return importlib.import_module(name)
-    except ModuleNotFoundError as exc:
-        missing = exc.name or name
-        if name != missing and not name.startswith(missing + "."):
-            raise  # the module is there; something it imports is not
-        top = name.partition(".")[0]
-        raise ModuleNotFoundError(f"{name} is needed for this and is not installed (pip install {INSTALL.get(top, top)})", name=name) from exc
+    if found is None or getattr(getattr(found, "__spec__", None), "_initializing", False):
+        try:
+            found = importlib.import_module(name)  # its per-module lock: one import, whole, whichever thread asks first
+        except ModuleNotFoundError as exc:
+            _missing(name, exc)
+    object.__setattr__(module, "_lazy_module", found)
+    return found
+
+
+def _missing(name: str, exc: ModuleNotFoundError) -> NoReturn:
+    """Raise the error of a module that cannot be imported: what to install when it is the module (or its package)."""
+    missing = exc.name or name
+    if name != missing and not name.startswith(missing + "."):
+        raise exc  # the module is there; something it imports is not
+    top = name.partition(".")[0]
+    raise ModuleNotFoundError(f"{name} is needed for this and is not installed (pip install {INSTALL.get(top, top)})", name=name) from exc
