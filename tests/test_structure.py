@@ -159,6 +159,21 @@ def test_a_line_overshooting_a_kept_one_is_cut_to_touch_it():
     assert cut.length == pytest.approx(float(coords.angular_distance(cut.start, cut.end)), abs=1e-9)
 
 
+def test_an_edge_running_on_past_a_corner_stops_there():
+    # a room's corner at (0, 0): a floor edge ends there, and the wall's vertical edge was found 3° too long,
+    # past the corner (the pattern below continues it); the method would see the floor's end on the vertical, not a joint
+    floor = _line((-40.0, 0.0), (0.0, 0.0), 0.7)
+    wall = _line((0.0, 40.0), (0.0, -3.0), 0.7)
+    choice = choose_structure([floor, wall], (0.0, 90.0))
+    assert len(choice.kept) == 2 and choice.dropped == ()
+    kept = next(s for s in choice.kept if s.kind == "vertical")
+    assert kept.start == wall.start and kept.end == pytest.approx((0.0, 0.0), abs=1e-9)  # cut at the corner
+    assert next(s for s in choice.kept if s is not kept).end == floor.end
+    # a T: the floor's end 20° from the vertical's ends cuts nothing
+    tee = _line((0.0, 40.0), (0.0, -20.0), 0.7)
+    assert next(s for s in choose_structure([floor, tee], (0.0, 90.0)).kept if s.kind == "vertical").end == tee.end
+
+
 def test_the_corner_of_a_box_is_not_a_crossing():
     # three edges meeting at one corner touch at their ends only: all three kept
     corner = (30.0, 35.0)

@@ -62,6 +62,7 @@ __all__ = [
     "KIND_TOLERANCE",
     "Reason",
     "MERGE_DISTANCE",
+    "OVERSHOOT",
     "OTHER_MIN_LENGTH",
     "OTHER_WEIGHT",
     "StructureChoice",
@@ -131,6 +132,10 @@ SAME_EDGE = 1.2
 #: Degrees: a line dropped as the same edge as a kept one and lying this close to the kept line's circle (median of its
 #: samples; none farther than :data:`SAME_EDGE`) is a piece of it: the kept line is lengthened over it.
 MERGE_DISTANCE = 0.5
+#: Degrees: a kept line running on past a corner (another kept line's end on it, within :data:`END_DISTANCE`, the
+#: two meeting at more than :data:`JUNCTION_ANGLE`) by less than this, and by less than a quarter of its length,
+#: stops at the corner: the detector's overshoot, which the method would see as two lines crossing.
+OVERSHOOT = 5.0
 #: Points sampled along each line for :data:`CLOSE_SHARE`.
 CLOSE_SAMPLES = 12
 
@@ -708,7 +713,7 @@ def choose_structure(
             continue
         kept.append(i)
     longer, depth = _lengthened(arcs, kept, pieces, junction.depth)
-    ends = _trim(longer, kept, depth)
+    ends = _corners(_trim(longer, kept, depth))
     chosen = []
     for n, i in enumerate(kept):
         a, b = ends[n]
@@ -840,6 +845,41 @@ def _trim(arcs: _Arcs, kept: list[int], depth: FloatArray) -> list[tuple[FloatAr
         else:
             ends[q] = (x, b1) if _angle(b0, x) <= _angle(b1, x) else (b0, x)
     return ends
+
+
+def _corners(ends: list[tuple[FloatArray, FloatArray]]) -> list[tuple[FloatArray, FloatArray]]:
+    """The kept arcs' ends, each arc cut back where it runs on past a corner by less than :data:`OVERSHOOT`.
+
+    At a corner of a room two edges end at one point; the detector often finds one of them
+    a few degrees too long (the pattern beyond the corner continues it). The method then
+    sees an end of the other line on it short of its end, not a joint, and once the lines
+    are straightened the two cross. The arc is cut at the corner (the other's end put on its
+    circle), so that the two meet at their ends. An end on an arc far from the arc's ends
+    (a T) cuts nothing.
+    """
+    out = list(ends)
+    limit = math.radians(OVERSHOOT)
+    near = math.sin(math.radians(END_DISTANCE))
+    skew = math.cos(math.radians(JUNCTION_ANGLE))
+    for p, (a, b) in enumerate(ends):
+        normal = _unit(np.cross(a, b))
+        along = np.cross(normal, a)
+        length = _angle(a, b)
+        start, end = a, b
+        for q, other in enumerate(ends):
+            if q == p or abs(float(_unit(np.cross(*other)) @ normal)) > skew:
+                continue
+            for corner in other:
+                if abs(float(corner @ normal)) >= near:
+                    continue
+                t = math.atan2(float(corner @ along), float(corner @ a))
+                on = _unit(corner - float(corner @ normal) * normal)  # the corner put on this arc's circle
+                if 0.0 < t < min(limit, length / 4):
+                    start = on
+                elif 0.0 < length - t < min(limit, length / 4):
+                    end = on
+        out[p] = (start, end)
+    return out
 
 
 def _angle(a: FloatArray, b: FloatArray) -> float:
