@@ -13,19 +13,69 @@ removed by the next run on the same output.
 from __future__ import annotations
 
 import argparse
+import json
+import math
+import re
 import signal
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
+from .._files import refuse_overwrites, remove_leftovers
+from .._lazy import lazy
 from .._version import __version__
+from ..errors import ImageError, OmniwidgetError
 
+# Every module a command uses, named here and loaded when a command first reads it: `omniwidget --help`
+# and a refused argument load none of them.
 if TYPE_CHECKING:
+    import cv2
+    import numpy as np
+
+    from .. import data as omniwidget_data
+    from .. import detect
+    from ..detect import structure
+    from ..document import handles as document_handles
+    from ..document import schema
+    from ..evaluate import quality
+    from ..io import draw, frames, images
+    from ..io import metadata as io_metadata
+    from ..io import video as io_video
+    from ..raster import perspective, pipeline, strips
     from ..raster.pipeline import Result
+    from . import batch
+    from . import frames as app_frames
+    from . import straighten as app_straighten
+    from . import strips as app_strips
+    from . import video as app_video
+else:
+    io_metadata = lazy("omniwidget.io.metadata")
+    pipeline = lazy("omniwidget.raster.pipeline")
+    quality = lazy("omniwidget.evaluate.quality")
+    cv2 = lazy("cv2")
+    document_handles = lazy("omniwidget.document.handles")
+    images = lazy("omniwidget.io.images")
+    strips = lazy("omniwidget.raster.strips")
+    np = lazy("numpy")
+    app_strips = lazy("omniwidget.app.strips")
+    frames = lazy("omniwidget.io.frames")
+    app_frames = lazy("omniwidget.app.frames")
+    batch = lazy("omniwidget.app.batch")
+    io_video = lazy("omniwidget.io.video")
+    app_video = lazy("omniwidget.app.video")
+    detect = lazy("omniwidget.detect")
+    app_straighten = lazy("omniwidget.app.straighten")
+    structure = lazy("omniwidget.detect.structure")
+    omniwidget_data = lazy("omniwidget.data")
+    draw = lazy("omniwidget.io.draw")
+    perspective = lazy("omniwidget.raster.perspective")
+    schema = lazy("omniwidget.document.schema")
 
 EXIT_BAD_INPUT = 2
 #: Ctrl+C, as a shell reports a process ended by SIGINT (128 + 2).
@@ -196,15 +246,11 @@ def _add_metadata_arguments(parser: argparse.ArgumentParser, command: str) -> No
 
 def _output_metadata(args: argparse.Namespace, source: Path, shape: tuple[int, ...], handles: Any = None, levelled: bool = False) -> Any:
     """The metadata an output of ``shape`` made from ``source`` carries (:func:`omniwidget.io.metadata.output_metadata`)."""
-    from ..io.metadata import output_metadata, read_metadata
-
     levelled = levelled or (handles is not None and handles.options.up is not None)
-    return output_metadata(read_metadata(source), shape[1], shape[0], gpano=not args.no_gpano, levelled=levelled)
+    return io_metadata.output_metadata(io_metadata.read_metadata(source), shape[1], shape[0], gpano=not args.no_gpano, levelled=levelled)
 
 
 def _check_output(path: Path, suffixes: Sequence[str], what: str) -> None:
-    from ..errors import ImageError
-
     if path.suffix.lower() not in suffixes:
         raise ImageError(f"{path}: the {what} must end in {', '.join(suffixes)}")
     if not path.parent.is_dir():
@@ -269,9 +315,7 @@ def _add_warp_arguments(parser: argparse.ArgumentParser, command: str) -> None:
 
 def _warp_quietly(*args: Any, **kwargs: Any) -> Result:
     """Run a warp; its conflict warnings go to stderr as one line each instead of Python warnings."""
-    from ..raster.pipeline import warp
-
-    result = warp(*args, warn=False, **kwargs)
+    result = pipeline.warp(*args, warn=False, **kwargs)
     for message in result.warnings:
         print(f"omniwidget: warning: {message}", file=sys.stderr)
     return result
@@ -303,12 +347,8 @@ def _headline(result: Result) -> str:
     (``result.warnings``, printed above the closing line), with the handles their problems name
     (``result.problems``).
     """
-    import math
-
-    from ..evaluate.quality import chain_straightness
-
     parts = []
-    lines = chain_straightness(result)
+    lines = quality.chain_straightness(result)
     if lines:
         worst = max(lines)
         shown = not any(math.isnan(v) for v in lines)
@@ -342,8 +382,6 @@ def _as_command_line(message: str) -> str:
 
 def _quiet_opencv() -> None:
     """Silence OpenCV's own log lines (a decoder's complaints): the one-line error says it, naming the file."""
-    import cv2
-
     logging = getattr(getattr(cv2, "utils", None), "logging", None)
     if logging is not None:
         logging.setLogLevel(logging.LOG_LEVEL_SILENT)
@@ -358,8 +396,6 @@ def _refuse_overwrites(args: argparse.Namespace, writes: Sequence[tuple[str, Pat
     runs left beside the outputs (hidden ``.NAME.*.tmp`` and ``.part`` files no live run holds)
     is removed.
     """
-    from .._files import refuse_overwrites, remove_leftovers
-
     reads: list[tuple[str, Path]] = [("the input", p) for p in (args.input if isinstance(args.input, list) else [args.input])]
     if args.command == "warp":  # level's -H is one of its outputs
         reads += [(what, p) for what, p in (("the handles file", args.handles), ("the map", args.apply_map)) if p is not None]
@@ -369,8 +405,6 @@ def _refuse_overwrites(args: argparse.Namespace, writes: Sequence[tuple[str, Pat
 
 
 def _cmd_warp(args: argparse.Namespace) -> None:
-    from ..errors import ImageError
-
     _quiet_opencv()
     if args.map is not None:
         _check_output(args.map, (".npy",), "map file")
@@ -395,25 +429,21 @@ def _cmd_warp(args: argparse.Namespace) -> None:
 
 
 def _warp_one(args: argparse.Namespace) -> None:
-    from ..document.handles import load_handles
-    from ..io.images import check_writable, read_panorama, write_bytes
-    from ..raster.strips import STREAM_WIDTH
-
     (source,) = args.input
     _check_output(args.output, _IMAGE_SUFFIXES, "output image")
     _refuse_overwrites(args, [("-o", args.output), ("--map", args.map)])
-    handles = load_handles(args.handles)
+    handles = document_handles.load_handles(args.handles)
     if _in_strips(args, source):
         _warp_in_strips(args, source, handles)
         return
-    image = read_panorama(source, args.fit, width=args.width, warp=True)  # refused before decoding if the warp cannot fit
-    check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
-    if (args.width or image.shape[1]) > STREAM_WIDTH:  # a format whose header does not say its size
+    image = images.read_panorama(source, args.fit, width=args.width, warp=True)  # refused before decoding if the warp cannot fit
+    images.check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
+    if (args.width or image.shape[1]) > strips.STREAM_WIDTH:  # a format whose header does not say its size
         _warp_in_strips(args, source, handles, image)
         return
     result, outputs = _warped_outputs(args, image, handles, source)
     for path, data in outputs:
-        write_bytes(path, data)
+        images.write_bytes(path, data)
     _say(args, f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; {_headline(result)}")
 
 
@@ -422,18 +452,15 @@ def _in_strips(args: argparse.Namespace, source: Path) -> bool:
 
     Known from the file's header; a file whose header does not say its size is decided once decoded.
     """
-    from ..io.images import available_memory, image_header, memory_needed
-    from ..raster.strips import STREAM_WIDTH
-
     if source.is_dir():
         return False  # read_panorama says what is wrong with it
-    header = image_header(source)
+    header = images.image_header(source)
     if header is None:
         return False
-    if (args.width or max(header.width, header.height)) > STREAM_WIDTH:
+    if (args.width or max(header.width, header.height)) > strips.STREAM_WIDTH:
         return True
-    have = available_memory()
-    return have is not None and memory_needed(source, warp=True, width=args.width) > have
+    have = images.available_memory()
+    return have is not None and images.memory_needed(source, warp=True, width=args.width) > have
 
 
 def _warp_in_strips(args: argparse.Namespace, source: Path, handles: Any, image: Any = None) -> None:
@@ -442,26 +469,20 @@ def _warp_in_strips(args: argparse.Namespace, source: Path, handles: Any, image:
     ``image``: the panorama already decoded. The image is written before the map (each whole or not at all): a failure
     writing the map leaves the image.
     """
-    import numpy as np
-
-    from ..io.images import write_image_strips
-    from ..raster.strips import MAP_WIDTH
-    from .strips import strips_of_file
-
-    with strips_of_file(source, handles, width=args.width, order=args.order, fit=args.fit, image=image, output=args.output) as made:
+    with app_strips.strips_of_file(source, handles, width=args.width, order=args.order, fit=args.fit, image=image, output=args.output) as made:
         for message in made.result.warnings:
             print(f"omniwidget: warning: {message}", file=sys.stderr)
         height, width = made.shape[:2]
         show = args.progress or (sys.stderr.isatty() and not args.quiet)
         progress = (lambda rows: _progress_bar(rows, height, "rows")) if show else None
         meta = _output_metadata(args, source, made.shape, handles)
-        write_image_strips(args.output, made.shape, made.dtype, made.image_strips(), progress=progress, meta=meta)
+        images.write_image_strips(args.output, made.shape, made.dtype, made.image_strips(), progress=progress, meta=meta)
         written = [args.output]
         if args.map is not None:
-            write_image_strips(args.map, (height, width, 2), np.float32, made.map_strips())
+            images.write_image_strips(args.map, (height, width, 2), np.float32, made.map_strips())
             written.append(args.map)
     names = " and ".join(str(p) for p in written)
-    _say(args, f"wrote {names} ({width} x {height}, in strips) in {_elapsed(args)}; {_headline(made.result)} (measured {MAP_WIDTH} wide)")
+    _say(args, f"wrote {names} ({width} x {height}, in strips) in {_elapsed(args)}; {_headline(made.result)} (measured {strips.MAP_WIDTH} wide)")
 
 
 def _written(outputs: Sequence[tuple[Path, bytes]]) -> str:
@@ -475,21 +496,17 @@ def _warped_outputs(args: argparse.Namespace, image: Any, handles: Any, source: 
 
     ``source``: the file ``image`` was read from, whose metadata the output carries (brought up to date).
     """
-    from ..io.images import encode_image
-
     result = _warp_quietly(image, handles, width=args.width, order=args.order)
     # all encoded before any is written: a failure leaves no output at all
     meta = _output_metadata(args, source, result.image.shape, handles) if source is not None else None
-    outputs = [(args.output, encode_image(args.output, result.image, meta))]
+    outputs = [(args.output, images.encode_image(args.output, result.image, meta))]
     if args.map is not None:
-        outputs.append((args.map, encode_image(args.map, result.inverse_map())))  # .npy: the float32 array as it is
+        outputs.append((args.map, images.encode_image(args.map, result.inverse_map())))  # .npy: the float32 array as it is
     return result, outputs
 
 
 def _frame_outputs(args: argparse.Namespace) -> list[Path]:
     """Where each frame goes: ``-o`` itself for one input, else ``-o/<the input's name>``; checked before any work."""
-    from ..errors import ImageError
-
     inputs = args.input
     if len(inputs) == 1:
         outputs = [args.output]
@@ -519,17 +536,11 @@ def _progress_bar(done: int, total: int, what: str = "frames") -> None:
 
 
 def _warp_frames(args: argparse.Namespace) -> None:
-    from ..document.handles import load_handles
-    from ..errors import ImageError
-    from ..io.frames import load_map
-    from ..io.images import check_format, read_panorama, write_image
-    from .frames import FrameSettings, map_coordinates, warp_frames
-
     outputs = _frame_outputs(args)
-    handles = load_handles(args.handles) if args.handles is not None else None
-    saved = load_map(args.apply_map) if args.apply_map is not None else None
-    first = read_panorama(args.input[0], args.fit, width=args.width, warp=True, reduce=False)  # frames share one size: all whole
-    check_format(outputs[0], first[:0])  # the folder may not exist yet
+    handles = document_handles.load_handles(args.handles) if args.handles is not None else None
+    saved = frames.load_map(args.apply_map) if args.apply_map is not None else None
+    first = images.read_panorama(args.input[0], args.fit, width=args.width, warp=True, reduce=False)  # frames share one size: all whole
+    images.check_format(outputs[0], first[:0])  # the folder may not exist yet
     start = time.perf_counter()
     result: Result | None = None
     if saved is not None:
@@ -539,19 +550,19 @@ def _warp_frames(args: argparse.Namespace) -> None:
     else:
         result = _warp_quietly(first, handles, width=args.width, order=args.order)
         inverse_map = result.inverse_map()
-    coordinates = map_coordinates(inverse_map, first.shape[1])
+    coordinates = app_frames.map_coordinates(inverse_map, first.shape[1])
     map_seconds = time.perf_counter() - start
     if args.map is not None:
-        write_image(args.map, inverse_map)
+        images.write_image(args.map, inverse_map)
     if len(outputs) > 1:
         args.output.mkdir(exist_ok=True)
     progress = _progress_bar if len(outputs) > 1 and (args.progress or (sys.stderr.isatty() and not args.quiet)) else None
-    report = warp_frames(
+    report = app_frames.warp_frames(
         args.input,
         outputs,
         coordinates,
         first.shape[:2],
-        FrameSettings(order=args.order, fit=args.fit, gpano=not args.no_gpano, levelled=handles is not None and handles.options.up is not None),
+        app_frames.FrameSettings(order=args.order, fit=args.fit, gpano=not args.no_gpano, levelled=handles is not None and handles.options.up is not None),
         workers=args.workers,
         progress=progress,
     )
@@ -572,10 +583,6 @@ def _warp_frames(args: argparse.Namespace) -> None:
 
 def _check_scheduler(value: str) -> None:
     """``--dask``'s value names a scheduler file that is there, or an address with a port (said before any work)."""
-    import re
-
-    from ..errors import ImageError
-
     if value.endswith(".json"):
         if not Path(value).is_file():
             raise ImageError(f"--dask {value}: no scheduler file there (dask scheduler --scheduler-file {value} writes it)")
@@ -585,11 +592,6 @@ def _check_scheduler(value: str) -> None:
 
 def _warp_on_dask(args: argparse.Namespace, videos: bool) -> None:
     """``--dask``: each file a task on the cluster, each video's time ranges tasks (:func:`omniwidget.app.batch.warp_files`); the workers read and write the files."""
-    from ..document.handles import load_handles
-    from ..errors import ImageError, OmniwidgetError
-    from ..io.frames import load_map
-    from .batch import warp_files
-
     if args.map is not None:
         raise ImageError("--map with --dask: save the map on this machine first (omniwidget warp FRAME -H ... --map MAP.npy), then --apply-map MAP.npy")
     if args.workers is not None:
@@ -607,8 +609,8 @@ def _warp_on_dask(args: argparse.Namespace, videos: bool) -> None:
         _refuse_overwrites(args, [(("-o" if len(each) == 1 else "the output"), o) for o in each])
     if not videos and len(outputs) > 1:
         args.output.mkdir(exist_ok=True)
-    handles = load_handles(args.handles) if args.handles is not None else None
-    saved = load_map(args.apply_map) if args.apply_map is not None else None
+    handles = document_handles.load_handles(args.handles) if args.handles is not None else None
+    saved = frames.load_map(args.apply_map) if args.apply_map is not None else None
     if saved is not None and args.width is not None and args.width != saved.shape[1]:
         raise ImageError(f"--width {args.width}: the map {args.apply_map} makes frames {saved.shape[1]} wide")
     progress = _progress_bar if len(args.input) > 1 and (args.progress or (sys.stderr.isatty() and not args.quiet)) else None
@@ -618,7 +620,7 @@ def _warp_on_dask(args: argparse.Namespace, videos: bool) -> None:
             raise ImageError(f"--segment-seconds {args.segment_seconds:g}: a time range lasts more than 0 seconds")
         options["segment_seconds"] = args.segment_seconds
     try:
-        report = warp_files(
+        report = batch.warp_files(
             args.input,
             outputs,
             handles=handles,
@@ -687,13 +689,6 @@ def _clock(seconds: float) -> str:
 
 def _warp_video(args: argparse.Namespace) -> None:
     """One video to one video: the map once (from the first frame, or --apply-map), then every frame by it (omniwidget.app.video)."""
-    from ..document.handles import load_handles
-    from ..errors import ImageError
-    from ..io.frames import load_map
-    from ..io.images import write_image
-    from ..io.video import OUTPUT_SUFFIXES, VideoReader
-    from .video import VideoSettings, warp_video
-
     if len(args.input) != 1:
         raise ImageError("a video is warped on its own: omniwidget warp INPUT.mp4 (-H handles.json | --apply-map MAP.npy) -o OUTPUT.mp4")
     (source,) = args.input
@@ -701,30 +696,30 @@ def _warp_video(args: argparse.Namespace) -> None:
         raise ImageError(f"{args.output}: a video output needs a video input ({', '.join(_VIDEO_SUFFIXES)}), and {source} is not one")
     if args.fit is not None:
         raise ImageError("--fit is not for videos")
-    _check_output(args.output, OUTPUT_SUFFIXES, "output video")
+    _check_output(args.output, io_video.OUTPUT_SUFFIXES, "output video")
     _refuse_overwrites(args, [("-o", args.output), ("--map", args.map)])
     if args.width is not None and args.width % 4:
         raise ImageError(f"--width {args.width}: a video's width must be a multiple of 4 (4:2:0 video has even sizes)")
     start = time.perf_counter()
     result: Result | None = None
     if args.apply_map is not None:
-        inverse_map = load_map(args.apply_map)
+        inverse_map = frames.load_map(args.apply_map)
         if args.width is not None and args.width != inverse_map.shape[1]:
             raise ImageError(f"--width {args.width}: the map {args.apply_map} makes frames {inverse_map.shape[1]} wide")
     else:
-        handles = load_handles(args.handles)
-        with VideoReader(source) as video:  # refuses what is no 360° video before any work
+        handles = document_handles.load_handles(args.handles)
+        with io_video.VideoReader(source) as video:  # refuses what is no 360° video before any work
             first = video.read_at(video.info.start)
         result = _warp_quietly(first, handles, width=args.width, order=args.order)
         inverse_map = result.inverse_map()
     map_seconds = time.perf_counter() - start
     progress = _VideoProgress(sys.stderr.isatty()) if args.progress or (sys.stderr.isatty() and not args.quiet) else None
     try:
-        report = warp_video(
+        report = app_video.warp_video(
             source,
             args.output,
             inverse_map,
-            settings=VideoSettings(
+            settings=app_video.VideoSettings(
                 order=args.order, codec=args.codec, crf=args.crf, preset=args.preset, spherical=True if args.spherical else None, workers=args.workers
             ),
             progress=progress,
@@ -733,7 +728,7 @@ def _warp_video(args: argparse.Namespace) -> None:
         if progress is not None:
             progress.finish()
     if args.map is not None:
-        write_image(args.map, inverse_map)
+        images.write_image(args.map, inverse_map)
     for stream in report.dropped:
         _say(args, f"note: not copied: {stream}")
     w, h = report.size
@@ -757,14 +752,6 @@ def _cmd_straighten(args: argparse.Namespace) -> None:
     and checked there by a warp (lines that give way are left out); the handles are then
     warped onto every input as ``warp -H`` does, at full size, frames and videos included.
     """
-    import tempfile
-
-    from ..detect import DETECT_WIDTH
-    from ..errors import ImageError
-    from ..io.images import read_panorama, write_bytes
-    from ..io.video import VideoReader, is_video_path
-    from .straighten import straighten
-
     _quiet_opencv()
     if args.max_lines < 1:
         raise ImageError(f"--max-lines {args.max_lines}: at least one line")
@@ -773,13 +760,13 @@ def _cmd_straighten(args: argparse.Namespace) -> None:
     saved_handles, args.handles = args.handles, None
     _refuse_overwrites(args, [("-o", args.output), ("--map", args.map), ("-H", saved_handles)])
     first = args.input[0]
-    if is_video_path(first):
-        with VideoReader(first) as video:  # refuses what is no 360° video before any work
+    if io_video.is_video_path(first):
+        with io_video.VideoReader(first) as video:  # refuses what is no 360° video before any work
             seen = video.read(len(video) // 2)
     else:
-        seen = read_panorama(first, args.fit, width=DETECT_WIDTH)  # a JPEG twice as wide or more is decoded reduced
-    seen = seen if seen.shape[1] <= DETECT_WIDTH else _reduced(seen, DETECT_WIDTH)
-    done = straighten(seen, max_lines=args.max_lines, level=not args.no_level)
+        seen = images.read_panorama(first, args.fit, width=detect.DETECT_WIDTH)  # a JPEG twice as wide or more is decoded reduced
+    seen = seen if seen.shape[1] <= detect.DETECT_WIDTH else _reduced(seen, detect.DETECT_WIDTH)
+    done = app_straighten.straighten(seen, max_lines=args.max_lines, level=not args.no_level)
     _say(args, f"{done.structure.summary()} (found {seen.shape[1]} wide)")
     text = done.handles.to_json() + "\n"
     with tempfile.TemporaryDirectory(prefix="omniwidget-straighten-") as folder:
@@ -787,22 +774,16 @@ def _cmd_straighten(args: argparse.Namespace) -> None:
         args.handles.write_text(text)
         _cmd_warp(args)
     if saved_handles is not None:
-        write_bytes(saved_handles, text.encode())
+        images.write_bytes(saved_handles, text.encode())
 
 
 def _reduced(frame: Any, width: int) -> Any:
     """A frame resized to ``width`` by area averaging (the detector's input)."""
-    import cv2
-
     return cv2.resize(frame, (width, width // 2), interpolation=cv2.INTER_AREA)
 
 
 def _cmd_level(args: argparse.Namespace) -> None:
     """``omniwidget level``: the camera's tilt from the vertical edges, undone by the levelling turn (``options.up``, as warp does)."""
-    from ..detect import level
-    from ..errors import ImageError
-    from ..io.images import check_writable, read_panorama, write_bytes
-
     _quiet_opencv()
     for path, suffixes, what in ((args.output, _IMAGE_SUFFIXES, "output image"), (args.map, (".npy",), "map file"), (args.handles, (".json",), "handles file")):
         if path is not None:
@@ -812,9 +793,9 @@ def _cmd_level(args: argparse.Namespace) -> None:
         raise ImageError(f"--width {args.width}: the width must be even and at least 2")
     if args.pose_only:
         _check_pose_only(args)
-    image = read_panorama(args.input, args.fit, width=args.width, warp=True)
-    check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
-    found = level(image)  # too few vertical edges: a LevelError, one line, nothing written
+    image = images.read_panorama(args.input, args.fit, width=args.width, warp=True)
+    images.check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
+    found = detect.level(image)  # too few vertical edges: a LevelError, one line, nothing written
     handles = found.handles()
     if args.pose_only:
         _write_pose(args, found, handles)
@@ -823,7 +804,7 @@ def _cmd_level(args: argparse.Namespace) -> None:
     if args.handles is not None:
         outputs.append((args.handles, (handles.to_json() + "\n").encode()))
     for path, data in outputs:
-        write_bytes(path, data)
+        images.write_bytes(path, data)
     _say(
         args,
         f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; levelled by pitch {found.pitch:+.2f}°, "
@@ -833,13 +814,10 @@ def _cmd_level(args: argparse.Namespace) -> None:
 
 def _check_pose_only(args: argparse.Namespace) -> None:
     """``level --pose-only`` refused before any work where it cannot be: options that resample, another format."""
-    from ..errors import ImageError
-    from ..io.images import image_header
-
     for name in ("map", "width", "fit"):
         if getattr(args, name) is not None:
             raise ImageError(f"--pose-only writes no pixels: --{name} has no meaning with it")
-    header = image_header(args.input)
+    header = images.image_header(args.input)
     kind = header.format if header is not None else None
     if kind not in ("JPEG", "PNG", "WebP"):
         raise ImageError(f"{args.input}: --pose-only writes the pose into a JPEG, PNG or WebP file; this is {kind or 'neither'}")
@@ -850,27 +828,22 @@ def _check_pose_only(args: argparse.Namespace) -> None:
 
 def _write_pose(args: argparse.Namespace, found: Any, handles: Any) -> None:
     """``level --pose-only``: the input's bytes, its XMP's GPano pose set to the pitch and roll found (nothing resampled)."""
-    from dataclasses import replace
-
-    from ..io.images import image_header, write_bytes
-    from ..io.metadata import Pose, output_metadata, read_metadata, replace_xmp, with_xmp
-
     data = args.input.read_bytes()
-    header = image_header(args.input)
+    header = images.image_header(args.input)
     width, height = (header.width, header.height) if header is not None else (0, 0)
-    meta = read_metadata(data)
+    meta = io_metadata.read_metadata(data)
     old = meta.gpano
     angles = found.pose()
-    pose = Pose(pitch=angles["PosePitchDegrees"], roll=angles["PoseRollDegrees"])
+    pose = io_metadata.Pose(pitch=angles["PosePitchDegrees"], roll=angles["PoseRollDegrees"])
     if old is not None and old.full_width > 0:  # its own geometry kept (a part of a sphere stays one), only the pose changes
-        xmp = replace_xmp(meta.xmp, replace(old, pose=Pose(old.pose.heading, pose.pitch, pose.roll)))
+        xmp = io_metadata.replace_xmp(meta.xmp, replace(old, pose=io_metadata.Pose(old.pose.heading, pose.pitch, pose.roll)))
     else:
-        xmp = output_metadata(meta, width, height, gpano=True, pose=pose).xmp or b""
-    outputs = [(args.output, with_xmp(data, xmp))]
+        xmp = io_metadata.output_metadata(meta, width, height, gpano=True, pose=pose).xmp or b""
+    outputs = [(args.output, io_metadata.with_xmp(data, xmp))]
     if args.handles is not None:
         outputs.append((args.handles, (handles.to_json() + "\n").encode()))
     for path, out in outputs:
-        write_bytes(path, out)
+        images.write_bytes(path, out)
     _say(
         args,
         f"wrote {_written(outputs)} (the input's pixels, not resampled) in {_elapsed(args)}; its GPano pose: pitch {found.pitch:+.2f}°, "
@@ -880,12 +853,6 @@ def _write_pose(args: argparse.Namespace, found: Any, handles: Any) -> None:
 
 def _cmd_suggest(args: argparse.Namespace) -> None:
     """``omniwidget suggest``: a handles file of line handles along the structure found (best first: :func:`~omniwidget.detect.structure.choose_structure`)."""
-    from ..detect import DETECT_WIDTH, level, level_document, suggest_lines, suggestions_to_handles
-    from ..detect.structure import choose_structure
-    from ..document.handles import Handles
-    from ..errors import ImageError
-    from ..io.images import read_panorama, write_bytes
-
     _quiet_opencv()
     _check_output(args.output, (".json",), "handles file")
     _refuse_overwrites(args, [("-o", args.output)])
@@ -893,19 +860,19 @@ def _cmd_suggest(args: argparse.Namespace) -> None:
         raise ImageError(f"--max-lines {args.max_lines}: at least one line")
     # the lines are found at DETECT_WIDTH at most: a JPEG at least twice as wide is decoded reduced (libjpeg's DCT
     # scaling, an average over each block), suggest_lines takes it the rest of the way
-    image = read_panorama(args.input, args.fit, width=DETECT_WIDTH)
-    every = suggest_lines(image, max_lines=None, structure=False)  # all of them: --level looks among every edge
-    found = level(image, suggestions=every) if args.level else None  # too few vertical edges: a LevelError, nothing written
-    width = min(int(image.shape[1]), DETECT_WIDTH)  # the width the lines were found at
-    chosen = choose_structure(every, None if found is None else found.up, width=width, max_lines=args.max_lines, image=image)
-    handles = suggestions_to_handles(chosen.kept)
+    image = images.read_panorama(args.input, args.fit, width=detect.DETECT_WIDTH)
+    every = detect.suggest_lines(image, max_lines=None, structure=False)  # all of them: --level looks among every edge
+    found = detect.level(image, suggestions=every) if args.level else None  # too few vertical edges: a LevelError, nothing written
+    width = min(int(image.shape[1]), detect.DETECT_WIDTH)  # the width the lines were found at
+    chosen = structure.choose_structure(every, None if found is None else found.up, width=width, max_lines=args.max_lines, image=image)
+    handles = detect.suggestions_to_handles(chosen.kept)
     note = ""
     if found is not None:
-        handles = level_document(handles, found)
+        handles = detect.level_document(handles, found)
         note = f"; levelled (options.up): pitch {found.pitch:+.2f}°, roll {found.roll:+.2f}° from {len(found.edges)} vertical edges"
     text = handles.to_json() + "\n"
-    Handles.from_json(text)  # what is written is what the loader reads back
-    write_bytes(args.output, text.encode())
+    document_handles.Handles.from_json(text)  # what is written is what the loader reads back
+    images.write_bytes(args.output, text.encode())
     lines = sum(1 for h in handles.handles if h.kind == "line")
     more = f", the structure among {len(every)} found" if len(every) > lines else ""
     _say(args, f"wrote {args.output} ({lines} line(s){more}{note}) in {_elapsed(args)}")
@@ -919,20 +886,13 @@ def _cmd_demo(args: argparse.Namespace) -> None:
     (:func:`omniwidget.io.draw.draw_handles`: on the input where they were marked, on the
     result where their maps put them), and ``before_after.png`` stacks those two.
     """
-    import numpy as np
-
-    from ..data import sample_image
-    from ..document.handles import Handles, save_handles
-    from ..io.draw import draw_handles
-    from ..io.images import write_image
-
     out = args.output_dir
     out.mkdir(parents=True, exist_ok=True)
-    image = sample_image()
-    handles = Handles.from_dict(DEMO_HANDLES)
+    image = omniwidget_data.sample_image()
+    handles = document_handles.Handles.from_dict(DEMO_HANDLES)
     result = _warp_quietly(image, handles)
-    before = draw_handles(image, handles, stage="input")
-    after = draw_handles(result.image, handles, stage="output")
+    before = draw.draw_handles(image, handles, stage="input")
+    after = draw.draw_handles(result.image, handles, stage="output")
     gap = np.full((8, image.shape[1], 3), 255, np.uint8)
     pictures = {
         "before.png": image,  # the bundled panorama as it is
@@ -941,9 +901,9 @@ def _cmd_demo(args: argparse.Namespace) -> None:
         "after-handles.png": after,
         "before_after.png": np.concatenate([before, gap, after]),
     }
-    save_handles(handles, out / "handles.json")
+    document_handles.save_handles(handles, out / "handles.json")
     for name, picture in pictures.items():
-        write_image(out / name, picture)
+        images.write_image(out / name, picture)
     _say(
         args,
         f"wrote {out / 'after.png'} ({_size(result.image)}), the handles drawn apart ({', '.join(list(pictures)[2:])}), "
@@ -953,15 +913,9 @@ def _cmd_demo(args: argparse.Namespace) -> None:
 
 def _cmd_view(args: argparse.Namespace) -> None:
     """``omniwidget view``: a perspective still of a panorama (:func:`omniwidget.raster.perspective.view`), the camera checked before any work."""
-    import math
-
-    from ..errors import ImageError
-    from ..io.images import check_writable, encode_image, read_panorama, write_bytes
-    from ..raster.perspective import check_view, view
-
     _quiet_opencv()
     try:
-        yaw, pitch, fov = check_view(args.yaw, args.pitch, args.fov)
+        yaw, pitch, fov = perspective.check_view(args.yaw, args.pitch, args.fov)
     except ValueError as exc:
         raise ImageError(f"--{exc}") from None
     for name in ("width", "height"):
@@ -973,25 +927,20 @@ def _cmd_view(args: argparse.Namespace) -> None:
     # the still's centre has focal pixels a radian: a panorama of 2 pi focal pixels is as sharp there (and the view is
     # sharpest at its centre), so a JPEG at least twice that wide is decoded reduced (libjpeg's DCT scaling, an average)
     focal = args.width / (2 * math.tan(math.radians(fov) / 2))
-    image = read_panorama(args.input, args.fit, width=math.ceil(2 * math.pi * focal))
-    check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
-    still = view(image, yaw=yaw, pitch=pitch, fov=fov, width=args.width, height=args.height, order=args.order)
-    write_bytes(args.output, encode_image(args.output, still.image))
+    image = images.read_panorama(args.input, args.fit, width=math.ceil(2 * math.pi * focal))
+    images.check_writable(args.output, image[:0])  # a depth or alpha the format cannot hold is said before the work
+    still = perspective.view(image, yaw=yaw, pitch=pitch, fov=fov, width=args.width, height=args.height, order=args.order)
+    images.write_bytes(args.output, images.encode_image(args.output, still.image))
     _say(args, f"wrote {args.output} ({_size(still.image)}) looking at yaw {yaw:g}°, pitch {pitch:g}°, {fov:g}° across in {_elapsed(args)}")
 
 
 def _cmd_schema(args: argparse.Namespace) -> None:
-    import json
 
-    from ..document.schema import handles_schema
-
-    print(json.dumps(handles_schema(), indent=2))
+    print(json.dumps(schema.handles_schema(), indent=2))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    from ..errors import OmniwidgetError
-
     args = _parser().parse_args(argv)
     args.started = time.perf_counter()
     try:
