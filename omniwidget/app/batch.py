@@ -58,6 +58,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import os
+import re
 import threading
 import time
 import uuid
@@ -73,17 +74,29 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._files import refuse_overwrites, remove_leftovers
+from .._lazy import lazy, resolve
+from .._version import __version__
 from ..document.handles import Handles, load_handles
-from ..errors import ImageError, OmniwidgetError
+from ..errors import ImageError, OmniwidgetError, VideoError
+from ..io import frames, images, metadata
+from ..io import video as io_video
 from ..io.video import OUTPUT_SUFFIXES as VIDEO_OUTPUT_SUFFIXES
 from ..io.video import is_video_path
+from ..raster import pipeline, warping
+from . import frames as app_frames
+from . import video as app_video
 from .video import VideoSettings
 
 if TYPE_CHECKING:
+    import cv2
+    import distributed
     from distributed import Client
 
     from ..io.images import Fit
     from ..raster.warping import Order
+else:
+    cv2 = lazy("cv2")
+    distributed = lazy("distributed")
 
 __all__ = ["BatchReport", "BatchSettings", "FileReport", "warp_files"]
 
@@ -241,16 +254,13 @@ class BatchSettings:
     spherical: bool | None = None
 
     def __post_init__(self) -> None:
-        from ..io.images import FITS
-        from ..raster.warping import ORDERS
-
         seconds = self.segment_seconds
         if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not 0 < seconds < float("inf"):
             raise ValueError(f"segment_seconds must be a positive number of seconds, got {seconds!r}")
-        if self.order not in ORDERS:
-            raise ValueError(f"order must be one of {', '.join(ORDERS)}, got {self.order!r}")
-        if self.fit is not None and self.fit not in FITS:
-            raise ValueError(f"fit must be None or one of {', '.join(FITS)}, got {self.fit!r}")
+        if self.order not in warping.ORDERS:
+            raise ValueError(f"order must be one of {', '.join(warping.ORDERS)}, got {self.order!r}")
+        if self.fit is not None and self.fit not in images.FITS:
+            raise ValueError(f"fit must be None or one of {', '.join(images.FITS)}, got {self.fit!r}")
         width = self.width
         if width is not None and (isinstance(width, bool) or not isinstance(width, (int, np.integer)) or width < 2 or width % 2):
             raise ValueError(f"width must be an even integer of at least 2, got {width!r}")
@@ -286,9 +296,6 @@ class _Recipe:
 
 
 def _recipe(handles: Any, inverse_map: Any, settings: BatchSettings) -> _Recipe:
-    from ..io.frames import load_map
-    from .frames import map_coordinates
-
     if (handles is None) == (inverse_map is None):
         raise ValueError("give either handles= (a Handles document or a handles file) or map= (an inverse map or a .npy file)")
     width = settings.width
@@ -297,10 +304,10 @@ def _recipe(handles: Any, inverse_map: Any, settings: BatchSettings) -> _Recipe:
         digest = hashlib.sha256(doc.to_json(indent=None).encode()).hexdigest()
         return _Recipe(doc, None, settings, f"handles-{digest}")
     if isinstance(inverse_map, (str, os.PathLike)):
-        m: NDArray[np.floating] = load_map(inverse_map)
+        m: NDArray[np.floating] = frames.load_map(inverse_map)
     else:
         m = np.ascontiguousarray(inverse_map)
-        map_coordinates(m, 2)  # checks it is a map: ImageError saying what is wrong
+        app_frames.map_coordinates(m, 2)  # checks it is a map: ImageError saying what is wrong
     if width is not None and width != m.shape[1]:
         raise ValueError(f"width={width}: the map makes outputs {m.shape[1]} wide")
     digest = hashlib.sha256(m.tobytes()).hexdigest()
@@ -348,10 +355,6 @@ def _forget(digest: str) -> None:
 
 def _environment() -> dict[str, str]:
     """The versions that decide an output's bytes, in this process."""
-    import cv2
-
-    from .._version import __version__
-
     return {"omniwidget": __version__, "numpy": np.__version__, "OpenCV": cv2.__version__}
 
 
@@ -361,9 +364,7 @@ def _make_inverse_map(handles: Handles, width: int, order: Order) -> tuple[NDArr
     It depends on the handles and the output width only (not on the pixels nor the input's
     size), so a one-pixel source will do.
     """
-    from ..raster.pipeline import warp
-
-    result = warp(np.zeros((1, 2), np.uint8), handles, width=width, order=order, warn=False)
+    result = pipeline.warp(np.zeros((1, 2), np.uint8), handles, width=width, order=order, warn=False)
     return result.inverse_map(), tuple(result.warnings)
 
 
@@ -386,15 +387,13 @@ def _inverse_map(recipe: _Recipe, out_width: int, keep: bool) -> tuple[NDArray[n
 
 def _coordinates(recipe: _Recipe, src_width: int) -> tuple[NDArray[np.float32], tuple[str, ...], float]:
     """Source coordinates for inputs ``src_width`` wide, the warp's warnings, and the seconds this call spent making them."""
-    from .frames import map_coordinates
-
     start = time.perf_counter()
     out_width = _output_width(recipe, src_width)
 
     def make() -> tuple[NDArray[np.float32], tuple[str, ...]]:
         # a map of a fixed output width serves inputs of every size: kept; one of the input's size serves these coordinates only
         inverse_map, warnings = _inverse_map(recipe, out_width, keep=recipe.width is not None)
-        return map_coordinates(inverse_map, src_width), warnings
+        return app_frames.map_coordinates(inverse_map, src_width), warnings
 
     (coordinates, warnings), made = _cached(("coordinates", recipe.digest, out_width, src_width), make)
     return coordinates, warnings, (time.perf_counter() - start) if made else 0.0
@@ -402,21 +401,17 @@ def _coordinates(recipe: _Recipe, src_width: int) -> tuple[NDArray[np.float32], 
 
 def _warp_file(recipe: _Recipe, src: str, dst: str, make_folder: bool) -> tuple[float, float, tuple[str, ...]]:
     """Read ``src``, warp it, write ``dst`` whole; ``(seconds, map seconds, warnings)``. Raises on any failure."""
-    from ..io.images import read_panorama, write_image
-    from ..io.metadata import output_metadata, read_metadata
-    from ..raster.warping import remap_panorama
-
     start = time.perf_counter()
     source, target = Path(src), Path(dst)
-    frame = read_panorama(source, recipe.fit)
+    frame = images.read_panorama(source, recipe.fit)
     coordinates, warnings, map_seconds = _coordinates(recipe, frame.shape[1])
-    out = remap_panorama(frame, coordinates, recipe.order)
+    out = warping.remap_panorama(frame, coordinates, recipe.order)
     if make_folder:
         target.parent.mkdir(exist_ok=True)
     # the input's metadata brought up to date, as omniwidget warp writes it (--no-gpano is not sent to the workers)
     levelled = recipe.handles is not None and recipe.handles.options.up is not None
-    meta = output_metadata(read_metadata(source), out.shape[1], out.shape[0], levelled=levelled)
-    write_image(target, out, meta)  # what a killed attempt left beside it is removed first (omniwidget._files)
+    meta = metadata.output_metadata(metadata.read_metadata(source), out.shape[1], out.shape[0], levelled=levelled)
+    images.write_image(target, out, meta)  # what a killed attempt left beside it is removed first (omniwidget._files)
     return time.perf_counter() - start, map_seconds, warnings
 
 
@@ -431,10 +426,7 @@ def _plan_video(src: str, dst: str, segment_seconds: float) -> tuple[int, tuple[
     range of this one is written; those of this count are this batch's (a plan run again when
     its worker died while the ranges were written) or are written over and removed by it.
     """
-    from ..errors import VideoError
-    from ..io.video import probe_video
-
-    info = probe_video(src)
+    info = io_video.probe_video(src)
     problem = info.panorama_problem()
     if problem is not None:
         raise VideoError(f"{src}: {problem}")
@@ -451,8 +443,6 @@ def _segment_paths(dst: Path, count: int) -> list[Path]:
 
 def _stale_segments(dst: Path, count: int) -> list[str]:
     """The ranges of ``dst`` on the disk now, named as :func:`_segment_paths` names them, cut in other than ``count``."""
-    import re
-
     pattern = re.compile(re.escape(f".{dst.name}.") + r"\d{3}of(\d{3})" + re.escape(dst.suffix))
     try:
         names = os.listdir(dst.parent)
@@ -465,8 +455,6 @@ def _warp_segment(
     recipe: _Recipe, src: str, src_width: int, seg: str, start: float | None, end: float | None, make_folder: bool
 ) -> tuple[float, float, tuple[str, ...]]:
     """Warp one time range of a video ``src_width`` wide into ``seg`` (video only, from a key frame); ``(seconds, map seconds, warnings)``."""
-    from .video import warp_video
-
     tick = time.perf_counter()
     target = Path(seg)
     if make_folder:
@@ -475,15 +463,13 @@ def _warp_segment(
     before = time.perf_counter()
     inverse_map, warnings = _inverse_map(recipe, out_width, keep=True)
     map_seconds = time.perf_counter() - before
-    warp_video(src, target, inverse_map, settings=recipe.settings.video, spherical=False, start=start, end=end, audio=False)
+    app_video.warp_video(src, target, inverse_map, settings=recipe.settings.video, spherical=False, start=start, end=end, audio=False)
     return time.perf_counter() - tick, map_seconds, warnings
 
 
 def _join_segments(recipe: _Recipe, src: str, segs: Sequence[str], dst: str, done: Sequence[tuple[Any, ...]]) -> tuple[float, float, tuple[str, ...]]:
     """Join a video's warped ranges into ``dst`` with the source's sound; the ranges' ``(seconds, map seconds, warnings)`` summed."""
-    from ..io.video import join_video_segments
-
-    report = join_video_segments(segs, dst, source=src, spherical=recipe.settings.spherical)
+    report = io_video.join_video_segments(segs, dst, source=src, spherical=recipe.settings.spherical)
     warnings = tuple(dict.fromkeys(w for d in done for w in d[2]))
     return report.seconds + sum(d[0] for d in done), sum(d[1] for d in done), warnings
 
@@ -497,9 +483,7 @@ def _remove_segments(segs: Sequence[str]) -> None:
 
 def _dask_task(work: Callable[..., tuple[Any, ...]], *args: Any) -> tuple[Any, ...]:
     """``work(*args)`` on a Dask worker; its result, and which worker ran it."""
-    from distributed import get_worker
-
-    return (*work(*args), get_worker().address)
+    return (*work(*args), distributed.get_worker().address)
 
 
 def _describe(exc: BaseException, src: Path) -> str:
@@ -726,20 +710,20 @@ def _in_process(
     return files, tuple(found)
 
 
-def _connect(client: Any) -> tuple[Client, bool]:
+def _connect(client: Any) -> tuple[distributed.Client, bool]:
     """A connected client and whether it is ours to close."""
     try:
-        from distributed import Client
+        resolve(distributed)
     except ImportError as exc:
         raise ImportError(f'a Dask cluster needs dask.distributed: pip install "omniwidget[dask]" ({exc})') from None
-    if isinstance(client, Client):
+    if isinstance(client, distributed.Client):
         return client, False
     if not isinstance(client, (str, os.PathLike)):
         raise TypeError(f"client must be a distributed.Client, a scheduler address or a scheduler file, got {type(client).__name__}")
     text = os.fspath(client)
     if text.endswith(".json") and Path(text).is_file():
-        return Client(scheduler_file=text), True
-    return Client(text), True
+        return distributed.Client(scheduler_file=text), True
+    return distributed.Client(text), True
 
 
 def _on_cluster(
@@ -750,8 +734,6 @@ def _on_cluster(
     client: Any,
     progress: Callable[[int, int], None] | None,
 ) -> tuple[list[FileReport], tuple[str, ...], str, int]:
-    from distributed import as_completed, wait
-
     dask, ours = _connect(client)
     futures: list[Any] = []
     cleanups: list[Any] = []
@@ -772,7 +754,7 @@ def _on_cluster(
             stage[key] = (i, what)
             return future
 
-        pending = as_completed()
+        pending = distributed.as_completed()
         for i, (src, dst) in enumerate(pairs):
             if is_video_path(src):
                 pending.add(submit(f"{prefix}-{i}-plan", i, "plan", _plan_video, str(src), str(dst), recipe.settings.segment_seconds))
@@ -808,7 +790,7 @@ def _on_cluster(
             done += 1
             if progress is not None:
                 progress(done, len(pairs))
-        wait(cleanups)
+        distributed.wait(cleanups)
         return [f for f in files if f is not None], tuple(found), address, count
     finally:
         unfinished = [f for f in futures if not f.done()]

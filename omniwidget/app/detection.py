@@ -14,9 +14,11 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import detect
 from .._checks import whole_number
 from ..document.handles import Handles, LineHandle
 from ..errors import OmniwidgetError
+from . import straighten as app_straighten
 from ._latest import Latest
 from .source import Source
 from .status import Board, JobStatus, exception_text
@@ -87,10 +89,8 @@ class Detection:
 
     def detect_source(self) -> NDArray:
         """The panorama the detector looks at (:data:`~omniwidget.detect.DETECT_WIDTH` wide at most, as it would reduce it): kept, made once."""
-        from ..detect import DETECT_WIDTH
-
         with self.board.lock:
-            return self.source.downscaled(DETECT_WIDTH)
+            return self.source.downscaled(detect.DETECT_WIDTH)
 
     def _set(self, job: Job, **fields: Unpack[JobStatus]) -> None:
         self.board.set_job(job, fields)
@@ -140,11 +140,9 @@ class Detection:
         self._start("suggest", lambda: self._suggest_job(max_lines), "finding straight edges...", wait)
 
     def _suggest_job(self, max_lines: int) -> None:
-        from ..detect import suggest_lines
-
         start = time.perf_counter()
         try:
-            found = suggest_lines(self.detect_source(), max_lines=max_lines)
+            found = detect.suggest_lines(self.detect_source(), max_lines=max_lines)
         except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
             self._failed("suggest", exc)
             self._set("suggest", state="error", message=f"could not suggest lines: {_reason(exc)}")
@@ -218,11 +216,9 @@ class Detection:
             _answer(then)
 
     def _level(self) -> None:
-        from ..detect import level
-
         start = time.perf_counter()
         try:
-            found = level(self.detect_source())
+            found = detect.level(self.detect_source())
             seconds = time.perf_counter() - start
             self._apply_level(found)
         except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay
@@ -237,11 +233,9 @@ class Detection:
 
     def _apply_level(self, found: Any) -> None:
         """Apply the rotation found to the handles as they are: an edit made while it is applied is never undone."""
-        from ..detect import level_document
-
         for _ in range(3):
             base = self.editing.handles
-            levelled = level_document(Handles.from_dict(base), found)
+            levelled = detect.level_document(Handles.from_dict(base), found)
             if self.editing.handles == base:
                 self.editing.edit(levelled)
                 return
@@ -260,11 +254,9 @@ class Detection:
         self._start("straighten", lambda: self._claimed("straighten", self._straighten, then), message, wait)
 
     def _straighten(self) -> None:
-        from .straighten import straighten
-
         start = time.perf_counter()
         try:
-            done = straighten(self.detect_source())
+            done = app_straighten.straighten(self.detect_source())
             self.drop()  # the structure replaces them
             self.editing.edit(done.handles)
         except Exception as exc:  # noqa: BLE001 - shown in the widget; the handles stay

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from ..raster import live
 from ._latest import Latest
 from .preview import PreviewJob
 
@@ -41,15 +42,13 @@ class LiveDrag:
         result is on screen or the handle has no control in it (a handle drawn meanwhile);
         the browser then shows the drag as before, the kernel's result on release.
         """
-        from ..raster.live import live_basis
-
         board = self.preview.board
         with board.lock:
             result, generation = self.preview.result, board.status.get("generation")
         if result is None or not isinstance(index, int) or not 0 <= index < len(result.handles):
             return
         try:
-            basis = live_basis(result, index)
+            basis = live.live_basis(result, index)
         except ValueError:
             return
         height, width = basis.fixed.shape[:2]

@@ -15,8 +15,12 @@ from numpy.typing import NDArray
 
 from ..document.handles import Handles
 from ..errors import ImageError, VideoError
+from ..io import images, video
 from ..io.images import check_format, write_image
 from ..io.metadata import Metadata, output_metadata, read_metadata
+from ..raster import strips
+from . import strips as app_strips
+from . import video as app_video
 from ._places import PACKAGE, same_file
 from .preview import PreviewJob
 from .source import Source
@@ -101,10 +105,8 @@ class ImageExport:
 
     def in_strips(self) -> bool:
         """Whether Save image makes the result in strips: a panorama file wider than the command line's STREAM_WIDTH."""
-        from ..raster.strips import STREAM_WIDTH
-
         source = self.source
-        return source.path is not None and source.video is None and source.width > STREAM_WIDTH
+        return source.path is not None and source.video is None and source.width > strips.STREAM_WIDTH
 
     def _save_in_strips(self, doc: Handles, path: str | os.PathLike[str] | None, *, gpano: bool = True) -> Path:
         """Save image for a panorama too large to warp whole: made and written in strips, its progress in the status.
@@ -114,9 +116,6 @@ class ImageExport:
         the method on its map grid. ``status["saving"]`` says the rows written and their total as they go, and the
         message the share.
         """
-        from ..io.images import write_image_strips
-        from .strips import strips_of_file
-
         source = self.source
         if source.path is None:  # pragma: no cover - in_strips says so
             raise ImageError("only a panorama opened from a file is saved in strips")
@@ -129,9 +128,9 @@ class ImageExport:
             said = f"saving {target.name}: {100 * rows // height}% of {height} rows"
             self.board.set_status(message=said, saving={"done": rows, "total": height}, save={"state": "running", "message": said})
 
-        with strips_of_file(source.path, doc, image=source.full_image, output=target) as made:
+        with app_strips.strips_of_file(source.path, doc, image=source.full_image, output=target) as made:
             meta = self._output_metadata(doc, made.shape, gpano)
-            write_image_strips(target, made.shape, made.dtype, made.image_strips(), progress=progress, meta=meta)
+            images.write_image_strips(target, made.shape, made.dtype, made.image_strips(), progress=progress, meta=meta)
         self._say_saved(target, made.shape)
         return target
 
@@ -194,9 +193,7 @@ class ImageExport:
 # --- save video ----------------------------------------------------------------------------------
 def _video_location(video_path: Path) -> Path:
     """Where Save video writes: ``clip.mp4`` gives ``clip-rectified.mp4`` next to it (MP4 for inputs in other containers)."""
-    from ..io.video import OUTPUT_SUFFIXES
-
-    suffix = video_path.suffix if video_path.suffix.lower() in OUTPUT_SUFFIXES else ".mp4"
+    suffix = video_path.suffix if video_path.suffix.lower() in video.OUTPUT_SUFFIXES else ".mp4"
     return video_path.with_name(f"{video_path.stem}{RESULT_SUFFIX}{suffix}")
 
 
@@ -301,8 +298,6 @@ class VideoExport:
         return progress
 
     def _save(self, doc: Handles, key: str, target: Path, cancel: threading.Event) -> None:
-        from .video import VideoCancelled, warp_video
-
         image_path = self.source.path
         assert image_path is not None  # save() checked it
         try:
@@ -310,9 +305,9 @@ class VideoExport:
                 raise ImageError(f"{target}: is the input video, which the editor never overwrites; name another file")
             the_map = self.preview.full(doc, key, warn=False).inverse_map()
             if cancel.is_set():
-                raise VideoCancelled(f"cancelled before the first frame; {target} was not written")
-            report = warp_video(image_path, target, inverse_map=the_map, progress=self._progress(cancel), cancel=cancel)
-        except VideoCancelled as exc:
+                raise app_video.VideoCancelled(f"cancelled before the first frame; {target} was not written")
+            report = app_video.warp_video(image_path, target, inverse_map=the_map, progress=self._progress(cancel), cancel=cancel)
+        except app_video.VideoCancelled as exc:
             self.error = exc
             self._set(state="cancelled", message=f"saving the video was cancelled: {exc}")
             return

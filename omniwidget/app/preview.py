@@ -16,16 +16,23 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._lazy import lazy
 from ..document.handles import Handles, PointHandle
 from ..io.draw import display_rgb
+from ..method import reach
 from ..method.kinds import output_points
 from ..method.problems import Kind
+from ..raster import pipeline
 from ._latest import Latest
 from .source import DISPLAY_WIDTH, Source, jpeg
 from .status import Board, Status, exception_text
 
 if TYPE_CHECKING:
+    import cv2
+
     from ..raster.pipeline import Result
+else:
+    cv2 = lazy("cv2")
 
 __all__ = ["QUALITY_DELAY", "PreviewJob", "Rendered", "ResultStatus", "render"]
 
@@ -35,8 +42,6 @@ QUALITY_DELAY = 0.3
 
 def _display_rgb8(image: NDArray, width: int) -> NDArray[np.uint8]:
     """An RGB uint8 copy of ``image`` at most ``width`` wide, for the browser."""
-    import cv2
-
     if image.shape[1] > width:
         image = cv2.resize(image, (width, width // 2), interpolation=cv2.INTER_AREA)
     return display_rgb(image)
@@ -44,8 +49,6 @@ def _display_rgb8(image: NDArray, width: int) -> NDArray[np.uint8]:
 
 def _fold_overlay(mask: NDArray[np.bool_]) -> bytes:
     """A PNG, transparent but where the output folds over (magenta), or b"" when it does not."""
-    import cv2
-
     if not mask.any():
         return b""
     rgba = np.zeros(mask.shape + (4,), np.uint8)
@@ -59,10 +62,8 @@ def _reaches(handles: Any) -> list[float | None]:
 
     The editor draws it as the ring round a selected point (:mod:`omniwidget.method.reach`).
     """
-    from ..method.reach import default_reach
-
     return [
-        (h.reach if h.reach is not None else default_reach(handles, i)) if isinstance(h, PointHandle) else None
+        (h.reach if h.reach is not None else reach.default_reach(handles, i)) if isinstance(h, PointHandle) else None
         for i, h in enumerate(handles.handles)
     ]
 
@@ -190,23 +191,19 @@ class PreviewJob:
 
     def full(self, doc: Handles, key: str, warn: bool) -> Result:
         """The full-size result of ``doc`` (whose cache key is ``key``), kept for the next ask."""
-        from ..raster.pipeline import warp
-
         cached = self._full
         if cached is not None and cached[0] == key:
             return cached[1]
-        result = warp(self.source.image, doc, warn=warn, previous=self.result)  # the preview's weights, when they are these
+        result = pipeline.warp(self.source.image, doc, warn=warn, previous=self.result)  # the preview's weights, when they are these
         self._full = (key, result)
         return result
 
     def _warp(self, doc: Handles, key: str, full: bool) -> Result:
-        from ..raster.pipeline import warp
-
         source = self.source
         if full or source.preview_width == source.width:
             return self.full(doc, key, warn=False)
         # the last preview's weights start the solver: a drag changes them little
-        return warp(source.preview_source, doc, width=source.preview_width, warn=False, previous=self.result)
+        return pipeline.warp(source.preview_source, doc, width=source.preview_width, warn=False, previous=self.result)
 
     def compute(self, doc: Handles, key: str, generation: int, full: bool) -> Result | None:
         """Compute and show the result of ``doc``; return it (None when it failed, which is shown)."""

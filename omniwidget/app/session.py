@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 
 from ..document.handles import Handles, LineHandle, Options, PointHandle, load_handles
 from ..errors import HandlesError
+from ..method import edits
 from ..method.kinds import reset as reset_handle
 from .autosave import AUTOSAVE_SUFFIX, Autosave, autosave_location
 from .detection import Detection
@@ -590,10 +591,8 @@ class EditingSession:
 
     def rectify_line(self, index: int) -> None:
         """Rectify line ``index`` and hold every other handle where it is ("rectify current line")."""
-        from ..method.edits import rectify_line
-
         self._handle(index)
-        self.edit(rectify_line(self.document, index))
+        self.edit(edits.rectify_line(self.document, index))
 
     def reset(self, index: int) -> None:
         """Undo every transformation of handle ``index``: its output goes back to where it was drawn."""

@@ -10,13 +10,21 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import detect
 from .._checks import whole_number
+from .._lazy import lazy
 from ..errors import ImageError
+from ..io import large
+from ..io import video as io_video
 from ..io.draw import display_rgb
 from ..io.images import check_panorama, image_header, read_image
 
 if TYPE_CHECKING:
+    import cv2
+
     from ..io.video import VideoReader
+else:
+    cv2 = lazy("cv2")
 
 __all__ = ["DISPLAY_WIDTH", "LAZY_WIDTH", "PREVIEW_WIDTH", "Source", "jpeg"]
 
@@ -32,8 +40,6 @@ LAZY_WIDTH = 8192
 
 def jpeg(rgb: NDArray[np.uint8], quality: int = 90) -> bytes:
     """``rgb`` (uint8, height x width x 3) as JPEG bytes, for the browser."""
-    import cv2
-
     ok, data = cv2.imencode(".jpg", rgb[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
     if not ok:  # pragma: no cover - OpenCV encodes any uint8 RGB image
         raise ImageError("could not encode the image for display")
@@ -42,13 +48,10 @@ def jpeg(rgb: NDArray[np.uint8], quality: int = 90) -> bytes:
 
 def _open(path: Path, preview_width: int) -> tuple[NDArray, int]:
     """The panorama at ``path`` and its reduction: one wider than :data:`LAZY_WIDTH` decoded reduced to what the editor shows."""
-    from ..detect import DETECT_WIDTH
-    from ..io.large import plan_read
-
     header = image_header(path)
     if header is not None and max(header.width, header.height) > LAZY_WIDTH:
-        needed = max(DISPLAY_WIDTH, 2 * preview_width, DETECT_WIDTH)
-        reduced = plan_read(header, needed).reduce  # a JPEG by libjpeg; another format above STREAM_BYTES in strips
+        needed = max(DISPLAY_WIDTH, 2 * preview_width, detect.DETECT_WIDTH)
+        reduced = large.plan_read(header, needed).reduce  # a JPEG by libjpeg; another format above STREAM_BYTES in strips
         if reduced > 1:
             return read_image(path, width=needed), reduced
     return read_image(path), 1
@@ -107,10 +110,8 @@ class Source:
         self.preview_source = self.downscaled(2 * self.preview_width)
 
     def _read_file(self, path: Path, preview_width: int, frame: int | None, time: float | None) -> NDArray:
-        from ..io.video import VideoReader, is_video_path
-
-        if is_video_path(path):
-            self.video = VideoReader(path)
+        if io_video.is_video_path(path):
+            self.video = io_video.VideoReader(path)
             self.frame = frame_index(self.video, frame, time)
             return self.video.read(self.frame)
         image, self.reduced = _open(path, preview_width)
@@ -131,8 +132,6 @@ class Source:
 
     def downscaled(self, width: int) -> NDArray:
         """The panorama at most ``width`` wide, made once per width (display and preview share 2048)."""
-        import cv2
-
         width = min(width, self.width)
         if width not in self._scaled:
             source = self.working if self.working.shape[1] >= width else self.image

@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._lazy import lazy
 from ..errors import VideoError
 from ..io.spherical import Spherical, write_spherical
 from ..io.video import (
@@ -60,11 +61,16 @@ from ..io.video import (
     time_range,
     video_output,
 )
+from ..raster import pipeline
 from ..raster.warping import ORDERS, Order, remap_panorama
 from .frames import map_coordinates
 
 if TYPE_CHECKING:
+    import cv2
+
     from ..document.handles import Handles
+else:
+    cv2 = lazy("cv2")
 
 __all__ = ["TEMPORARY_SUFFIX", "Progress", "VideoCancelled", "VideoSettings", "half_resolution_map", "warp_video"]
 
@@ -235,8 +241,6 @@ def _opencv_single_threaded() -> Iterator[None]:
     busy-waits between calls (``bench/bench_video.py`` measures it). The setting is
     OpenCV's, for the whole process.
     """
-    import cv2
-
     with _opencv_lock:
         if _opencv_users[0] == 0:
             _opencv_users[1] = cv2.getNumThreads()
@@ -463,11 +467,9 @@ def _the_map(info: VideoInfo, inverse_map: ArrayLike | None, handles: Handles | 
     """The inverse map the frames are warped by (given, or the warp of the first frame by ``handles``) and its warnings."""
     warnings: tuple[str, ...] = ()
     if handles is not None:
-        from ..raster.pipeline import warp
-
         with VideoReader(info.path, depth=16 if info.bits > 8 else 8) as video:
             first = video.read_at(info.start)
-        result = warp(first, handles, width=setting.width, order=setting.order, warn=False)
+        result = pipeline.warp(first, handles, width=setting.width, order=setting.order, warn=False)
         warnings = result.warnings
         the_map = result.inverse_map()
     else:
