@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import limit, require_regular_file
+from .._files import atomic_write_bytes
 from ..errors import HandlesError, NotRegularFileError
 from ..sphere import coords
 from ..sphere.moebius import Moebius, frame_rotation
@@ -425,8 +426,6 @@ def load_handles(path: str | os.PathLike[str]) -> Handles:
 
 def save_handles(handles: Handles, path: str | os.PathLike[str]) -> None:
     """Write a handles file whole (a temporary file, then a rename) or not at all."""
-    from .._files import atomic_write_bytes
-
     atomic_write_bytes(Path(path), (handles.to_json() + "\n").encode())
 
 

@@ -5,12 +5,20 @@ Used by the command line's demo and by figures; the widget draws in the browser 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._lazy import lazy
 from ..document.handles import Handles
 from ..method.kinds import kind_of
 from ..sphere import coords
+
+if TYPE_CHECKING:
+    import cv2
+else:
+    cv2 = lazy("cv2")
 
 __all__ = ["display_rgb", "draw_handles", "draw_polyline"]
 
@@ -48,8 +56,6 @@ def draw_polyline(
     ``dash=(on, off)`` draws it dashed: ``on`` pixels drawn, then ``off`` pixels left out, along
     the polyline from its first vertex; None (the default) draws it solid.
     """
-    import cv2
-
     width = image.shape[1]
     px = coords.lonlat_to_px(np.asarray(lonlat, dtype=np.float64), width)
     px[:, 0] = np.mod(px[:, 0] + 0.5, width) - 0.5
@@ -70,8 +76,6 @@ def _arc(start: ArrayLike, end: ArrayLike) -> NDArray[np.float64]:
 
 
 def _dot(image: NDArray[np.uint8], lonlat: ArrayLike, colour: RGB, radius: int) -> None:
-    import cv2
-
     x, y = coords.lonlat_to_px(np.asarray(lonlat, dtype=np.float64), image.shape[1])
     cv2.circle(image, (int(round(x)), int(round(y))), radius, colour, -1, cv2.LINE_AA)
 

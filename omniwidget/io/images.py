@@ -20,16 +20,28 @@ import zlib
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO, Literal
+from typing import TYPE_CHECKING, BinaryIO, Literal
 
 import numpy as np
+from numpy.lib import format as npy
 from numpy.typing import NDArray
 
 from .._checks import SUPPORTED_DTYPES, check_image, check_panorama, require_regular_file
 from .._files import AtomicOutput, atomic_output, atomic_write_bytes
+from .._lazy import lazy
 from ..errors import ImageError, NotRegularFileError
 from . import large, metadata
 from .large import REDUCE_ROWS, ReadPlan, plan_read, read_reduced
+
+if TYPE_CHECKING:
+    import resource
+
+    import cv2
+    import tifffile
+else:
+    cv2 = lazy("cv2")
+    resource = lazy("resource")
+    tifffile = lazy("tifffile")
 
 __all__ = [
     "FITS",
@@ -146,7 +158,6 @@ def to_equirectangular(image: NDArray, fit: Fit | None, name: str = "image", *, 
         above = extra // 2
         widths = [(above, extra - above), (0, 0)] + [(0, 0)] * (image.ndim - 2)
         return np.pad(image, widths)
-    import cv2
 
     new_w = w + w % 2
     new_h = new_w // 2
@@ -604,8 +615,6 @@ def _bmp_header(blob: _FileBytes) -> tuple[int, ...] | None:
 
 
 def _npy_header(fh: BinaryIO) -> tuple[tuple[int, ...], np.dtype, int] | None:
-    from numpy.lib import format as npy
-
     fh.seek(0)
     try:
         version = npy.read_magic(fh)
@@ -823,8 +832,6 @@ def _cgroup_available() -> int | None:
 def _rlimit_available() -> int | None:
     """What ``ulimit -v`` (address space) and ``ulimit -d`` (data) leave to this process."""
     try:
-        import resource
-
         with open("/proc/self/status") as fh:
             status = {k: v for k, _, v in (line.partition(":") for line in fh)}
     except (ImportError, OSError):
@@ -1042,8 +1049,6 @@ def _checked_structure(path: Path, kind: str | None, data: bytes) -> tuple[bytes
 
 def _decoded(path: Path, data: bytes, kind: str | None, size: tuple[int, int] | None, factor: int, header: ImageHeader | None) -> NDArray:
     """OpenCV's decoding of ``data`` (reduced by ``factor`` for a JPEG), in RGB(A) order; an ImageError saying why it cannot."""
-    import cv2
-
     flags = cv2.IMREAD_UNCHANGED
     if factor > 1 and header is not None:  # a JPEG decoded smaller; OpenCV must not turn it too (done by the caller)
         flags = getattr(cv2, _REDUCTIONS[factor][1 if len(header.shape) == 2 else 0]) | cv2.IMREAD_IGNORE_ORIENTATION
@@ -1083,8 +1088,6 @@ def _placed(path: Path, image: NDArray, data: bytes | Path | None) -> NDArray:
 
 def _swap_red_blue(image: NDArray) -> NDArray:
     """RGB(A) <-> BGR(A); other layouts as they are. A new array for 3 and 4 channels."""
-    import cv2
-
     if image.ndim != 3 or image.shape[2] not in (3, 4):
         return image
     if image.dtype == np.float64:  # cvtColor takes 8-bit, 16-bit and float32 only
@@ -1191,8 +1194,6 @@ def encode_image(path: Path, image: NDArray, meta: metadata.Metadata | None = No
     ``meta``: metadata added to the encoded bytes (:func:`omniwidget.io.metadata.with_metadata`:
     JPEG, PNG and WebP; the pixels are the same bytes as without it).
     """
-    import cv2
-
     check_writable(path, image)
     suffix = path.suffix.lower()
     if suffix == ".npy":
@@ -1381,8 +1382,6 @@ def _tiff_strips(output: AtomicOutput, shape: tuple[int, ...], dtype: np.dtype, 
     Gray + alpha is written as RGBA with the fourth channel "unspecified": OpenCV reads a gray
     + alpha tiled TIFF not at all, and the RGB of "unassalpha" premultiplied.
     """
-    import tifffile
-
     two = len(shape) == 3 and shape[2] == 2
     layout = (*shape[:2], 4) if two else shape
     photometric = "rgb" if len(layout) == 3 and layout[2] in (3, 4) else "minisblack"

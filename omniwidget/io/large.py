@@ -35,14 +35,24 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any, BinaryIO, Literal
 
 import numpy as np
+from numpy.lib import format as npy
 from numpy.typing import NDArray
 
 from .._checks import SUPPORTED_DTYPES
+from .._lazy import lazy, resolve
 from ..errors import ImageError
 from . import metadata
 
 if TYPE_CHECKING:
+    import cv2
+    import pyvips
+    import tifffile
+
     from .images import ImageHeader
+else:
+    pyvips = lazy("pyvips")
+    cv2 = lazy("cv2")
+    tifffile = lazy("tifffile")
 
 __all__ = [
     "JPEG_QUALITY",
@@ -313,7 +323,7 @@ def _vips_image(path: Path) -> Any:
     Turned as its EXIF orientation says; CMYK made RGB; gray with alpha made RGBA.
     """
     try:
-        import pyvips
+        resolve(pyvips)
     except ImportError:  # pragma: no cover - a declared dependency
         raise ImageError(f"{path}: panoramas this large are read with libvips: pip install pyvips pyvips-binary") from None
     try:
@@ -364,8 +374,6 @@ def open_on_disk(path: str | os.PathLike[str], header: ImageHeader) -> DiskPanor
     path = Path(path)
     if header.format == "npy":
         with path.open("rb") as fh:
-            from numpy.lib import format as npy
-
             version = npy.read_magic(fh)
             _, fortran, stored = (npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0)(fh)
         if fortran or header.dtype.type not in SUPPORTED_DTYPES or len(header.shape) not in (2, 3):
@@ -408,7 +416,6 @@ def read_reduced(path: str | os.PathLike[str], header: ImageHeader, factor: int)
     factor = int(factor)
     if factor < 1 or header.width % factor or header.height % factor:
         raise ValueError(f"a factor of {factor} does not divide the {header.width} x {header.height} image")
-    import cv2
 
     path = Path(path)
     if header.format != "npy":
@@ -519,9 +526,6 @@ def write_jpeg_strips(path: str | os.PathLike[str], shape: tuple[int, ...], stri
         :func:`omniwidget.io.metadata.jpeg_segments`): libvips' JPEG is copied once more
         with them, block by block.
     """
-    import pyvips
-    import tifffile
-
     path = Path(path)
     channels = shape[2] if len(shape) == 3 else 1
     if channels not in (1, 3):

@@ -34,12 +34,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._files import AtomicOutput, atomic_output, same_file
+from .._lazy import lazy, resolve
 from ..errors import VideoError
 from .spherical import EQUIRECTANGULAR, Spherical, check_mp4_structure, read_spherical, write_spherical
 
 if TYPE_CHECKING:
+    import av
     import av.container
     from av.video.stream import VideoStream
+else:
+    av = lazy("av")
 
 __all__ = [
     "INPUT_SUFFIXES",
@@ -88,7 +92,7 @@ _OWN_METADATA = {"major_brand", "minor_version", "compatible_brands", "encoder"}
 def _av() -> Any:
     """PyAV, or a VideoError saying how to install it."""
     try:
-        import av
+        resolve(av)
     except ImportError:
         raise VideoError("reading and writing videos needs PyAV: pip install 'omniwidget[video]' (or pip install av)") from None
     return av

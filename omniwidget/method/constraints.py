@@ -23,11 +23,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import whole_number
+from .._lazy import lazy
 from ..document.handles import Handles, LineHandle
 from ..sphere import coords
 from ..sphere.arcs import arc_crossing
@@ -35,6 +37,11 @@ from ..sphere.moebius import Moebius
 from .kinds import POINT_HOLD, Control, Part, Rows, kind_of
 from .limits import check_samples, check_weights
 from .rectify import Bone, RectifySolution, near_vertical, solve_bones
+
+if TYPE_CHECKING:
+    from scipy import spatial
+else:
+    spatial = lazy("scipy.spatial")
 
 __all__ = [
     "JOINT_DISTANCE",
@@ -196,10 +203,8 @@ def _joints(pieces: list[_Piece], distance: float, uprights: set[int] | None = N
 
     limit = 2 * math.sin(math.radians(distance) / 2)
     if len(ends) > 1:
-        from scipy.spatial import cKDTree
-
         # the pairs a little closer than the limit, then the limit itself: the components are those of every pair compared
-        for a, b in cKDTree(xyz).query_pairs(limit * (1 + 1e-9) + 1e-15, output_type="ndarray"):
+        for a, b in spatial.cKDTree(xyz).query_pairs(limit * (1 + 1e-9) + 1e-15, output_type="ndarray"):
             if ends[a][0] != ends[b][0] and np.linalg.norm(xyz[a] - xyz[b]) < limit:
                 parent[root(a)] = root(b)
     groups: dict[int, list[int]] = {}

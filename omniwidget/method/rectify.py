@@ -38,11 +38,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._checks import whole_number
-from ..sphere import coords
+from .._lazy import lazy
+from ..sphere import arcs, coords
 from ..sphere.moebius import Moebius
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
+    from scipy import spatial
+else:
+    spatial = lazy("scipy.spatial")
+    sp = lazy("scipy.sparse")
 
 __all__ = [
     "UPRIGHT_TOLERANCE",
@@ -377,8 +382,6 @@ def solve_bones(
 
 def _new_crossings(bones: Sequence[Bone], solution: RectifySolution) -> set[int]:
     """The free bones in a pair that crosses in the output (straight between its targets) and not in the input."""
-    from ..sphere.arcs import crossing_pairs
-
     t = np.linspace(0.0, 1.0, 17)
     inputs = [coords.geodesic(b.start, b.end, t) for b in bones]
     outputs = []
@@ -389,8 +392,8 @@ def _new_crossings(bones: Sequence[Bone], solution: RectifySolution) -> set[int]
             start, end = targets[0], targets[2].copy()
             end[0] = coords.unwrap_lon(np.array([end[0]]), start[0])[0]
             outputs.append((1 - t)[:, None] * start + t[:, None] * end)
-    before = set(crossing_pairs(inputs))
-    return {k for pair in set(crossing_pairs(outputs)) - before for k in pair if bones[k].free}
+    before = set(arcs.crossing_pairs(inputs))
+    return {k for pair in set(arcs.crossing_pairs(outputs)) - before for k in pair if bones[k].free}
 
 
 def _solve_bones(bones: Sequence[Bone], anchors: Sequence[Anchor], samples: int, keep: str, ends: NDArray[np.float64]) -> RectifySolution:
@@ -512,12 +515,10 @@ def _moved(taken: _Samples, var: NDArray, known: NDArray, idx: NDArray, sign: fl
 
 def _close_pairs(taken: _Samples) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Every pair ``(i, j)`` of samples of different handles with ``j`` closer to ``i`` than ``S / 4`` (``i``'s owner's span), one of them free."""
-    from scipy.spatial import cKDTree
-
     east = np.mod(taken.inputs[:, 0], 360.0)
     east[east >= 360.0] = 0.0  # a tiny negative longitude rounds to 360, outside the periodic box
     plane = np.stack([east, taken.inputs[:, 1] + 90.0], axis=1)
-    tree = cKDTree(plane, boxsize=[360.0, 1e6])  # longitude periodic: the seam is nothing special
+    tree = spatial.cKDTree(plane, boxsize=[360.0, 1e6])  # longitude periodic: the seam is nothing special
     asking = np.flatnonzero(taken.span > 0)
     found = tree.query_ball_point(plane[asking], taken.span[asking] / 4)
     i = np.repeat(asking, [len(f) for f in found])
@@ -566,8 +567,6 @@ def _eq10_keep_in_place(rows: _Rows, v: NDArray, keep: str, ends: float) -> None
 
 def _normal_equations(rows: _Rows, n: int) -> tuple[sp.csc_matrix, NDArray[np.float64]]:
     """The weighted least squares' normal matrix ``A^T W A`` (n, n) and right-hand side (n, 2), one for lon and lat."""
-    import scipy.sparse as sp
-
     a = sp.csr_matrix((np.concatenate(rows.val), (np.concatenate(rows.row), np.concatenate(rows.col))), shape=(rows.count, n))
     w = np.concatenate(rows.weight)
     const = np.concatenate(rows.const)
