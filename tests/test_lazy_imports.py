@@ -123,27 +123,6 @@ def test_the_package_attaches_its_public_names_when_first_read():
 
 
 # --- no import statement inside a function --------------------------------------------------------------------------------
-#: Files whose function-local imports are not converted yet, and how many each has (none may be added).
-NOT_YET: dict[str, int] = {
-    "app/batch.py": 19,
-    "app/cli.py": 68,
-    "app/detection.py": 5,
-    "app/drag.py": 1,
-    "app/exports.py": 5,
-    "app/preview.py": 5,
-    "app/session.py": 1,
-    "app/source.py": 5,
-    "app/video.py": 2,
-    "document/handles.py": 1,
-    "io/draw.py": 2,
-    "io/images.py": 7,
-    "io/large.py": 5,
-    "io/video.py": 1,
-    "method/constraints.py": 1,
-    "method/rectify.py": 3,
-}
-
-
 def _local_imports(path: Path) -> list[int]:
     """Lines of the import statements inside a function of ``path`` (under ``if TYPE_CHECKING`` or not)."""
     found: list[int] = []
@@ -158,12 +137,10 @@ def _local_imports(path: Path) -> list[int]:
     return found
 
 
-def test_no_import_inside_a_function_but_in_the_files_not_converted_yet():
+def test_no_import_inside_a_function():
     """A dependency is written at the top of its module, as ``import`` or as ``lazy("module")`` (omniwidget._lazy)."""
-    counts = {str(p.relative_to(PACKAGE)): len(_local_imports(p)) for p in sorted(PACKAGE.rglob("*.py"))}
-    over = {name: n for name, n in counts.items() if n > NOT_YET.get(name, 0)}
-    assert over == {}, f"imports inside functions (use omniwidget._lazy.lazy at the top of the module): {over}"
-    assert {name: n for name, n in NOT_YET.items() if counts.get(name, 0) < n} == {}, "a file converted: lower its count in NOT_YET"
+    found = {str(p.relative_to(PACKAGE)): lines for p in sorted(PACKAGE.rglob("*.py")) if (lines := _local_imports(p))}
+    assert found == {}, f"imports inside functions (name the module at the top, with omniwidget._lazy.lazy if it is heavy): {found}"
 
 
 def test_the_local_import_counter_counts(tmp_path):
