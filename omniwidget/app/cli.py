@@ -442,9 +442,16 @@ def _warp_one(args: argparse.Namespace) -> None:
         _warp_in_strips(args, source, handles, image)
         return
     result, outputs = _warped_outputs(args, image, handles, source)
+    _write_outputs(outputs)
+    _say(args, f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; {_headline(result)}")
+
+
+def _write_outputs(outputs: list[tuple[Path, bytes]], handles_path: Path | None = None, handles: Any = None) -> None:
+    """Write each ``(path, bytes)``, and with ``handles_path`` the handles document there too (appended to ``outputs``)."""
+    if handles_path is not None:
+        outputs.append((handles_path, (handles.to_json() + "\n").encode()))
     for path, data in outputs:
         images.write_bytes(path, data)
-    _say(args, f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; {_headline(result)}")
 
 
 def _in_strips(args: argparse.Namespace, source: Path) -> bool:
@@ -801,10 +808,7 @@ def _cmd_level(args: argparse.Namespace) -> None:
         _write_pose(args, found, handles)
         return
     result, outputs = _warped_outputs(args, image, handles, args.input)
-    if args.handles is not None:
-        outputs.append((args.handles, (handles.to_json() + "\n").encode()))
-    for path, data in outputs:
-        images.write_bytes(path, data)
+    _write_outputs(outputs, args.handles, handles)
     _say(
         args,
         f"wrote {_written(outputs)} ({_size(result.image)}) in {_elapsed(args)}; levelled by pitch {found.pitch:+.2f}°, "
@@ -840,10 +844,7 @@ def _write_pose(args: argparse.Namespace, found: Any, handles: Any) -> None:
     else:
         xmp = io_metadata.output_metadata(meta, width, height, gpano=True, pose=pose).xmp or b""
     outputs = [(args.output, io_metadata.with_xmp(data, xmp))]
-    if args.handles is not None:
-        outputs.append((args.handles, (handles.to_json() + "\n").encode()))
-    for path, out in outputs:
-        images.write_bytes(path, out)
+    _write_outputs(outputs, args.handles, handles)
     _say(
         args,
         f"wrote {_written(outputs)} (the input's pixels, not resampled) in {_elapsed(args)}; its GPano pose: pitch {found.pitch:+.2f}°, "
