@@ -301,6 +301,40 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
+def _launch(server: Any, cmd: list[str], env: dict[str, str], log_path: Path, description: str, what: str) -> None:
+    """Start ``server``'s process (its own process group, output to ``log_path``) and wait for ``server._is_up``.
+
+    Sets ``server.log_path``, ``server._log_file`` and ``server.process``; on any failure
+    ``server.stop()`` cleans up before the error goes on, naming ``description`` and the
+    log's tail (``what``: "server", "marimo").
+    """
+    server.log_path = log_path
+    server._log_file = open(log_path, "wb")  # noqa: SIM115 - closed in stop()
+    server.process = subprocess.Popen(
+        cmd, cwd=server.root, env=env, stdout=server._log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True
+    )
+    try:
+        wait_until(
+            server._is_up,
+            timeout=server.startup_timeout,
+            interval=0.2,
+            description=description,
+            diagnostics=lambda: f"{what} log tail:\n{server.log_tail()}",
+        )
+    except BaseException:
+        server.stop()
+        raise
+
+
+def _tail(path: Path, lines: int, what: str) -> str:
+    """The last ``lines`` lines of the log at ``path``, or why there is none."""
+    try:
+        text = path.read_text(errors="replace")
+    except OSError as exc:
+        return f"<no {what} log: {exc}>"
+    return "\n".join(text.splitlines()[-lines:])
+
+
 class JupyterServer:
     """A throw-away Jupyter server (JupyterLab or Notebook 7) on 127.0.0.1 with isolated config.
 
@@ -404,22 +438,7 @@ class JupyterServer:
             *self.frontend.args,
             *self.extra_args,
         ]
-        self.log_path = self.root / "jupyter-server.log"
-        self._log_file = open(self.log_path, "wb")  # noqa: SIM115 - closed in stop()
-        self.process = subprocess.Popen(
-            cmd, cwd=self.root, env=env, stdout=self._log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True
-        )
-        try:
-            wait_until(
-                self._is_up,
-                timeout=self.startup_timeout,
-                interval=0.2,
-                description=f"{self.frontend.title} at {self.url}/api/status",
-                diagnostics=lambda: f"server log tail:\n{self.log_tail()}",
-            )
-        except BaseException:
-            self.stop()
-            raise
+        _launch(self, cmd, env, self.root / "jupyter-server.log", f"{self.frontend.title} at {self.url}/api/status", "server")
         return self
 
     def _is_up(self) -> bool:
@@ -471,11 +490,7 @@ class JupyterServer:
 
     def log_tail(self, lines: int = 60) -> str:
         """The last ``lines`` lines of the server log."""
-        try:
-            text = self.log_path.read_text(errors="replace")
-        except OSError as exc:
-            return f"<no server log: {exc}>"
-        return "\n".join(text.splitlines()[-lines:])
+        return _tail(self.log_path, lines, "server")
 
     def api(self, method: str, path: str, body: Any = None, *, timeout: float = 10) -> Any:
         """Call the server REST API (``path`` like ``/api/sessions``); return decoded JSON or None."""
@@ -1019,22 +1034,7 @@ class MarimoServer:
             f"--port={self.port}",
             f"--token-password={self.token}",
         ]
-        self.log_path = self.root / "marimo.log"
-        self._log_file = open(self.log_path, "wb")  # noqa: SIM115 - closed in stop()
-        self.process = subprocess.Popen(
-            cmd, cwd=self.root, env=env, stdout=self._log_file, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True
-        )
-        try:
-            wait_until(
-                self._is_up,
-                timeout=self.startup_timeout,
-                interval=0.2,
-                description=f"marimo at {self.base}/health",
-                diagnostics=lambda: f"marimo log tail:\n{self.log_tail()}",
-            )
-        except BaseException:
-            self.stop()
-            raise
+        _launch(self, cmd, env, self.root / "marimo.log", f"marimo at {self.base}/health", "marimo")
         return self
 
     def _is_up(self) -> bool:
@@ -1062,11 +1062,7 @@ class MarimoServer:
 
     def log_tail(self, lines: int = 60) -> str:
         """The last ``lines`` lines of the server's log."""
-        try:
-            text = self.log_path.read_text(errors="replace")
-        except OSError as exc:
-            return f"<no marimo log: {exc}>"
-        return "\n".join(text.splitlines()[-lines:])
+        return _tail(self.log_path, lines, "marimo")
 
     def artifact(self, filename: str) -> Path:
         """``artifact_dir()/<stem>-marimo<suffix>``: a test's artifacts, apart from the Jupyter front ends'."""
